@@ -1,0 +1,242 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Pure conversions between ROS messages and the planning core's arrays and results.
+
+Nothing here needs a running node: every function takes plain values or messages and returns
+messages or NumPy arrays, so each can be tested on its own.
+"""
+
+from builtin_interfaces.msg import Duration
+from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import KeyValue
+from ellipath_ros.core.joint_trajectory import JointTrajectoryData
+from geometry_msgs.msg import Point
+import numpy as np
+from std_msgs.msg import ColorRGBA
+from std_msgs.msg import Header
+from trajectory_msgs.msg import JointTrajectory
+from trajectory_msgs.msg import JointTrajectoryPoint
+from visualization_msgs.msg import Marker
+from visualization_msgs.msg import MarkerArray
+
+_NANOSECONDS_PER_SECOND = 1_000_000_000
+
+MARKER_NAMESPACE = 'ellipath'
+# Points of the LINE_STRIP per leg of the cycle.
+MARKER_SAMPLES_PER_LEG = 64
+_LINE_WIDTH = 0.002  # m
+_KNOT_DIAMETER = 0.006  # m
+_APEX_DIAMETER = 0.012  # m
+_PATH_COLOUR = ColorRGBA(r=0.1, g=0.8, b=0.2, a=1.0)
+_KNOT_COLOUR = ColorRGBA(r=0.2, g=0.4, b=1.0, a=1.0)
+_APEX_COLOUR = ColorRGBA(r=1.0, g=0.3, b=0.1, a=1.0)
+
+
+def pose_position(pose_stamped):
+    """
+    Return the position of a geometry_msgs/PoseStamped as a float array (3,) [m].
+
+    The orientation is not used: the Delta robot has three translational degrees of freedom.
+    Non-finite coordinates are returned as they are; the caller validates them.
+    """
+    position = pose_stamped.pose.position
+    return np.array([position.x, position.y, position.z], dtype=float)
+
+
+def joint_positions_by_name(joint_state, joint_names):
+    """
+    Pick the positions of ``joint_names`` out of a sensor_msgs/JointState.
+
+    Parameters
+    ----------
+    joint_state : sensor_msgs.msg.JointState
+        Joint state in any joint order, possibly with other joints.
+    joint_names : Sequence[str]
+        Wanted joints, in the wanted order.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        Positions (len(joint_names),) [rad], or None when a wanted joint is missing, has no
+        position or a non-finite one.
+
+    """
+    if len(joint_state.position) != len(joint_state.name):
+        return None
+    by_name = dict(zip(joint_state.name, joint_state.position))
+    try:
+        positions = np.array([by_name[name] for name in joint_names], dtype=float)
+    except KeyError:
+        return None
+    return positions if np.all(np.isfinite(positions)) else None
+
+
+def duration_from_seconds(seconds):
+    """Return builtin_interfaces/Duration for a non-negative time [s], rounded to 1 ns."""
+    sec, nanosec = divmod(int(round(seconds * _NANOSECONDS_PER_SECOND)),
+                          _NANOSECONDS_PER_SECOND)
+    return Duration(sec=sec, nanosec=nanosec)
+
+
+def seconds_from_duration(duration):
+    """Return a builtin_interfaces/Duration as float seconds."""
+    return duration.sec + duration.nanosec / _NANOSECONDS_PER_SECOND
+
+
+def joint_trajectory_message(trajectory, frame_id, stamp):
+    """
+    Convert the core's JointTrajectoryData to a trajectory_msgs/JointTrajectory.
+
+    Parameters
+    ----------
+    trajectory : ellipath_ros.core.joint_trajectory.JointTrajectoryData
+        Joint names, times (K,) [s] and positions, velocities, accelerations (K, 3).
+    frame_id : str
+        Robot base frame for the header.
+    stamp : builtin_interfaces.msg.Time
+        Header stamp; zero tells the controller to start on receipt.
+
+    Returns
+    -------
+    trajectory_msgs.msg.JointTrajectory
+        One point per knot, with positions, velocities, accelerations and time_from_start.
+
+    """
+    rows = zip(np.asarray(trajectory.time_from_start, dtype=float).tolist(),
+               np.asarray(trajectory.positions, dtype=float).tolist(),
+               np.asarray(trajectory.velocities, dtype=float).tolist(),
+               np.asarray(trajectory.accelerations, dtype=float).tolist())
+    return JointTrajectory(
+        header=Header(frame_id=frame_id, stamp=stamp),
+        joint_names=list(trajectory.joint_names),
+        points=[JointTrajectoryPoint(positions=positions, velocities=velocities,
+                                     accelerations=accelerations,
+                                     time_from_start=duration_from_seconds(time))
+                for time, positions, velocities, accelerations in rows])
+
+
+def joint_trajectory_data(message):
+    """
+    Convert a trajectory_msgs/JointTrajectory back to the core's JointTrajectoryData.
+
+    The inverse of :func:`joint_trajectory_message` (times as whole nanoseconds); used to
+    check the message that is actually published with ``validate_jtc``.
+
+    Raises
+    ------
+    ellipath_ros.core.errors.InvalidInputError
+        The points do not form K rows of 3 finite values with increasing times.
+
+    """
+    points = message.points
+    return JointTrajectoryData(
+        joint_names=tuple(message.joint_names),
+        time_from_start=[seconds_from_duration(point.time_from_start) for point in points],
+        positions=[point.positions for point in points],
+        velocities=[point.velocities for point in points],
+        accelerations=[point.accelerations for point in points])
+
+
+def key_values(values):
+    """
+    Convert a flat mapping (metrics) to diagnostic_msgs/KeyValue, in the mapping's order.
+
+    Floats are written with 9 significant digits, everything else with ``str``.
+    """
+    return [KeyValue(key=str(key), value=_format_value(value)) for key, value in values.items()]
+
+
+def _format_value(value):
+    """Format one diagnostics value."""
+    if isinstance(value, (float, np.floating)):
+        return f'{float(value):.9g}'
+    return str(value)
+
+
+def diagnostic_array(stamp, name, hardware_id, level, message, values):
+    """
+    Build a diagnostic_msgs/DiagnosticArray holding one status.
+
+    Parameters
+    ----------
+    stamp : builtin_interfaces.msg.Time
+        Header stamp.
+    name, hardware_id : str
+        Status name and hardware id.
+    level : bytes
+        ``DiagnosticStatus.OK``, ``WARN`` or ``ERROR``.
+    message : str
+        Summary: the reason of a rejection, or ``'planned'``.
+    values : Mapping[str, object]
+        Key/value details (see :func:`key_values`).
+
+    """
+    status = DiagnosticStatus(level=level, name=name, message=message,
+                              hardware_id=hardware_id, values=key_values(values))
+    return DiagnosticArray(header=Header(stamp=stamp), status=[status])
+
+
+def _points(array):
+    """Convert an array (N, 3) to a list of geometry_msgs/Point."""
+    return [Point(x=x, y=y, z=z) for x, y, z in np.asarray(array, dtype=float).tolist()]
+
+
+def _marker(header, marker_id, marker_type, diameter, colour):
+    """Return an ADD marker with identity orientation, uniform scale and one colour."""
+    marker = Marker(header=header, ns=MARKER_NAMESPACE, id=marker_id, type=marker_type,
+                    action=Marker.ADD, color=colour)
+    marker.pose.orientation.w = 1.0
+    marker.scale.x = marker.scale.y = marker.scale.z = diameter
+    return marker
+
+
+def path_markers(plan, frame_id, stamp, samples_per_leg=MARKER_SAMPLES_PER_LEG):
+    """
+    Visualise a planned cycle as a visualization_msgs/MarkerArray.
+
+    The array starts with a DELETEALL marker so the markers of the previous plan vanish, then
+    holds a LINE_STRIP of the TCP path sampled along every leg, a SPHERE_LIST of the
+    trajectory knots and one SPHERE at the apex of every leg.
+
+    Parameters
+    ----------
+    plan : ellipath_ros.core.planner.CyclePlan
+        The planned cycle.
+    frame_id : str
+        Robot base frame.
+    stamp : builtin_interfaces.msg.Time
+        Header stamp of every marker.
+    samples_per_leg : int
+        Points of the LINE_STRIP per leg.
+
+    """
+    header = Header(frame_id=frame_id, stamp=stamp)
+    delete_all = Marker(header=header, ns=MARKER_NAMESPACE, action=Marker.DELETEALL)
+    path = np.concatenate([
+        leg.path.evaluate(np.linspace(0.0, leg.path.length, samples_per_leg)).position
+        for leg in plan.legs])
+    line = _marker(header, 0, Marker.LINE_STRIP, _LINE_WIDTH, _PATH_COLOUR)
+    line.points = _points(path)
+    knots = _marker(header, 1, Marker.SPHERE_LIST, _KNOT_DIAMETER, _KNOT_COLOUR)
+    knots.points = _points(np.concatenate([leg.knot_positions for leg in plan.legs]))
+    markers = [delete_all, line, knots]
+    for index, leg in enumerate(plan.legs):
+        apex = _marker(header, 2 + index, Marker.SPHERE, _APEX_DIAMETER, _APEX_COLOUR)
+        apex.pose.position.x, apex.pose.position.y, apex.pose.position.z = (
+            np.asarray(leg.path.apex, dtype=float).tolist())
+        markers.append(apex)
+    return MarkerArray(markers=markers)

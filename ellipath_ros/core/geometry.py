@@ -1,0 +1,584 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The paper's path: an asymmetric bisected ellipse between two vertical segments.
+
+Paper frame (DESIGN §2): the vertical plane through pick and place, coordinates
+(x, y) = (horizontal along ``u``, vertical), origin at the midpoint of the
+tangent points, T1 = (-l, -h), T2 = (l, h), l > 0.
+
+Every ellipse through T1 and T2 with vertical tangents there has its centre at
+the origin, so the family has one parameter. We use the conjugate
+semi-diameter form::
+
+    P(t) = cos(t) * (l, h) + sin(t) * (0, k),    k > 0,  t from pi (T1) to 0 (T2)
+
+which is continuous in h and has no 0/0. The paper's quantities follow from
+(l, h, k): the axes a >= b are the singular values of [[l, 0], [h, k]], phi is
+the direction of the major axis, and the paper's parameter is
+theta = t + theta_T2 (eq. 29). Closed forms used below: the radius of curvature
+at T1 and T2 is k**2 / l, the apex is at height sqrt(h**2 + k**2) and the
+smallest radius of curvature on the arc is b**2 / a (every half ellipse
+contains one end of the major axis).
+"""
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from .errors import DegenerateGeometryError, InvalidInputError, require_point, require_range
+
+ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
+
+# A critical angle closer than this below a whole degree makes the paper's
+# ellipse needle-thin (b -> 0); the paper's rule then takes the next degree.
+PAPER_MIN_MARGIN_DEG = 0.1
+# Horizontal distances below this are a pure vertical move (no arc).
+MIN_HORIZONTAL_DISTANCE = 1e-6
+# Pick and place closer than this are the same point: nothing to plan.
+MIN_MOVE_DISTANCE = 1e-6
+
+_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
+_N_PANELS = 128
+
+
+@dataclass(frozen=True)
+class ArcPolicy:
+    """
+    How the ellipse is chosen among those tangent to both verticals.
+
+    Attributes
+    ----------
+    kind : str
+        ``'paper'``: the paper's rule, phi* = the whole degree at or above the
+        critical angle atan(|h| / l) (regularised, see ``paper_phi``).
+        ``'apex_clearance'``: the apex stands ``apex_clearance`` above the
+        higher tangent point; works for any geometry, equal heights included.
+        ``'min_radius'``: the shortest arc whose smallest radius of curvature is
+        at least ``min_radius``.
+    apex_clearance : float
+        Apex height above the higher tangent point [m], used by
+        ``'apex_clearance'``; in (0, 2].
+    min_radius : float
+        Smallest admissible radius of curvature [m], used by ``'min_radius'``;
+        in (0, 2].
+
+    """
+
+    kind: str = 'paper'
+    apex_clearance: float = 0.025
+    min_radius: float = 0.02
+
+    def __post_init__(self):
+        if self.kind not in ARC_POLICIES:
+            raise InvalidInputError(
+                f'arc policy: expected one of {", ".join(ARC_POLICIES)}, got {self.kind!r}')
+        require_range('apex_clearance', self.apex_clearance, 0.0, 2.0, low_open=True, unit='m')
+        require_range('min_radius', self.min_radius, 0.0, 2.0, low_open=True, unit='m')
+
+
+def paper_phi(half_width, h):
+    """
+    Return the paper's optimal angle phi* [rad] (eq. 18), regularised.
+
+    phi* = ceil(critical angle in degrees), mirrored for h < 0. Where the
+    critical angle is a whole degree or less than ``PAPER_MIN_MARGIN_DEG``
+    below one, the paper's rule gives a degenerate or needle-thin ellipse, so
+    the next whole degree is taken. h = 0 returns 0 (the paper's 0/0, whose
+    limit from either side is the semicircle).
+
+    Raises
+    ------
+    DegenerateGeometryError
+        If the rule leaves no ellipse (phi* would reach 90 degrees).
+
+    """
+    critical_deg = math.degrees(math.atan2(abs(h), half_width))
+    if h == 0.0:
+        return 0.0
+    phi_deg = math.ceil(critical_deg)
+    if phi_deg - critical_deg < PAPER_MIN_MARGIN_DEG:
+        phi_deg += 1
+    if phi_deg >= 90:
+        raise DegenerateGeometryError(
+            f'paper arc rule: expected a critical angle atan(|h|/l) below '
+            f'{90 - 1 - PAPER_MIN_MARGIN_DEG:g} deg, got {critical_deg:.4f} deg '
+            f'(l = {half_width:.6g} m, h = {h:.6g} m); use the apex_clearance or min_radius '
+            f'arc policy for steep moves')
+    return math.copysign(math.radians(phi_deg), h)
+
+
+def paper_axes(half_width, h, phi):
+    """
+    Return (a, b) of the ellipse of angle ``phi`` by the paper's eqs. (15)-(20).
+
+    Valid for phi strictly beyond the critical angle (D, E != 0); used to
+    reproduce the paper and for its Figure 2.
+    """
+    s, c = math.sin(phi), math.cos(phi)
+    d = half_width * math.sin(2 * phi) + 2 * h * s * s
+    e = half_width * math.sin(2 * phi) - 2 * h * c * c
+    f = half_width * half_width * s * s - h * h * c * c
+    g = half_width * half_width * c * c - h * h * s * s
+    return math.sqrt(d * f / e + g), math.sqrt(f + e * g / d)
+
+
+def conjugate_k_from_phi(half_width, h, phi):
+    """
+    Return k of the tangent ellipse whose major axis makes the angle ``phi``.
+
+    From tan(2 phi) = 2 l h / (l**2 - h**2 - k**2), l = ``half_width``; phi = 0
+    with h = 0 gives the semicircle k = l.
+    """
+    if h == 0.0:
+        return half_width
+    k_squared = (half_width * half_width - h * h
+                 - 2.0 * half_width * abs(h) / math.tan(2.0 * abs(phi)))
+    if not k_squared > 0.0:
+        raise DegenerateGeometryError(
+            f'phi: expected an angle beyond the critical angle '
+            f'{math.degrees(math.atan2(abs(h), half_width)):.4f} deg, '
+            f'got {math.degrees(phi):.4f} deg')
+    return math.sqrt(k_squared)
+
+
+def elliptic_e(m):
+    """Complete elliptic integral of the second kind E(m), by the AGM (full precision)."""
+    a, b = 1.0, math.sqrt(1.0 - m)
+    c_squared_sum = 0.5 * m
+    power = 0.5
+    # The AGM converges quadratically; the bound only guards against rounding cycles.
+    for _ in range(64):
+        if abs(a - b) <= 2e-16 * a:
+            break
+        c = 0.5 * (a - b)
+        a, b = 0.5 * (a + b), math.sqrt(a * b)
+        power *= 2.0
+        c_squared_sum += power * c * c
+    return math.pi / (2.0 * a) * (1.0 - c_squared_sum)
+
+
+@dataclass(frozen=True, eq=False)
+class EllipticArc:
+    """
+    Half ellipse from T1 = (-l, -h) over the top to T2 = (l, h), paper frame.
+
+    Attributes
+    ----------
+    l : float
+        Half the horizontal distance between the tangent points [m], > 0.
+    h : float
+        Half the rise from T1 to T2 [m], any sign.
+    k : float
+        Vertical conjugate semi-diameter [m], > 0 (the free parameter).
+    a, b : float
+        Semi-major and semi-minor axes [m] (derived).
+    phi : float
+        Angle of the major axis from the x axis [rad] (derived).
+    theta_T1, theta_T2 : float
+        Paper's ellipse parameter (eq. 29) at T1 and T2 [rad]; theta_T1 =
+        theta_T2 + pi; along the motion theta decreases (derived).
+
+    """
+
+    l: float
+    h: float
+    k: float
+    a: float = field(init=False)
+    b: float = field(init=False)
+    phi: float = field(init=False)
+    theta_T1: float = field(init=False)
+    theta_T2: float = field(init=False)
+    _panel_t: np.ndarray = field(init=False, repr=False)
+    _panel_s: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        l_ = require_range('l', self.l, 0.0, low_open=True, unit='m')
+        h = require_finite_h(self.h)
+        k = require_range('k', self.k, 0.0, low_open=True, unit='m')
+        total = l_ * l_ + h * h + k * k
+        # Stable form of sqrt(total**2 - 4 l**2 k**2).
+        spread = math.sqrt(((l_ - k) ** 2 + h * h) * ((l_ + k) ** 2 + h * h))
+        a = math.sqrt(0.5 * (total + spread))
+        b = l_ * k / a
+        phi = 0.5 * math.atan2(2.0 * l_ * h, l_ * l_ - h * h - k * k)
+        x1 = l_ * math.cos(phi) + h * math.sin(phi)
+        y1 = -l_ * math.sin(phi) + h * math.cos(phi)
+        theta_t2 = math.atan2(y1 / b, x1 / a)
+        setattr_ = object.__setattr__
+        for name, value in (('a', a), ('b', b), ('phi', phi), ('theta_T2', theta_t2),
+                            ('theta_T1', theta_t2 + math.pi)):
+            setattr_(self, name, value)
+        # Arc-length table: s at panel bounds, t running from pi (s = 0) to 0.
+        panel_t = np.linspace(math.pi, 0.0, _N_PANELS + 1)
+        setattr_(self, '_panel_t', panel_t)
+        setattr_(self, '_panel_s', np.concatenate(
+            ([0.0], np.cumsum(self._integral(panel_t[:-1], panel_t[1:])))))
+
+    # -- parameterisation ------------------------------------------------------------
+    def point(self, t):
+        """Return points P(t), shape (N, 2) [m], for t of shape (N,) [rad]."""
+        t = np.asarray(t, dtype=float)
+        return np.stack((self.l * np.cos(t), self.h * np.cos(t) + self.k * np.sin(t)), axis=-1)
+
+    def derivative(self, t):
+        """Return dP/dt, shape (N, 2) [m/rad]; note d2P/dt2 = -P."""
+        t = np.asarray(t, dtype=float)
+        return np.stack((-self.l * np.sin(t), -self.h * np.sin(t) + self.k * np.cos(t)),
+                        axis=-1)
+
+    def speed(self, t):
+        """Return |dP/dt|, shape (N,) [m/rad]."""
+        return np.linalg.norm(self.derivative(t), axis=-1)
+
+    def theta_from_t(self, t):
+        """Return the paper's parameter theta = t + theta_T2 [rad]."""
+        return np.asarray(t, dtype=float) + self.theta_T2
+
+    def t_from_theta(self, theta):
+        """Return t = theta - theta_T2 [rad]."""
+        return np.asarray(theta, dtype=float) - self.theta_T2
+
+    def radius_of_curvature(self, theta):
+        """Return rho(theta) by the paper's eq. (34), shape of ``theta`` [m]."""
+        theta = np.asarray(theta, dtype=float)
+        a, b = self.a, self.b
+        return (a * a * np.sin(theta) ** 2 + b * b * np.cos(theta) ** 2) ** 1.5 / (a * b)
+
+    # -- lengths -------------------------------------------------------------------
+    @property
+    def length(self):
+        """Exact arc length [m]: half the perimeter, 2 a E(1 - b**2/a**2)."""
+        return 2.0 * self.a * elliptic_e(1.0 - (self.b / self.a) ** 2)
+
+    @property
+    def length_approx(self):
+        """Paper's approximate arc length, eq. (27) [m]."""
+        a, b = self.a, self.b
+        return 0.5 * (math.pi * (a + b) / 2.0 + math.pi / math.sqrt(2.0) * math.hypot(a, b))
+
+    def _integral(self, t_start, t_end):
+        """Return the arc length between t_start and t_end (elementwise), >= 0."""
+        t_start = np.asarray(t_start, dtype=float)
+        t_end = np.asarray(t_end, dtype=float)
+        half = 0.5 * (t_end - t_start)
+        nodes = (0.5 * (t_end + t_start))[..., None] + half[..., None] * _GL_NODES
+        return np.abs(half) * (self.speed(nodes) @ _GL_WEIGHTS)
+
+    def s_from_t(self, t):
+        """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
+        panel = np.clip(((math.pi - t) / math.pi * _N_PANELS).astype(int), 0, _N_PANELS - 1)
+        return self._panel_s[panel] + self._integral(self._panel_t[panel], t)
+
+    def t_from_s(self, s):
+        """Return t at arc length ``s`` from T1 (Newton on the exact length), shape of s."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self._panel_s[-1])
+        panel = np.clip(np.searchsorted(self._panel_s, s, side='right') - 1, 0, _N_PANELS - 1)
+        t0, t1 = self._panel_t[panel], self._panel_t[panel + 1]
+        s0, s1 = self._panel_s[panel], self._panel_s[panel + 1]
+        t = t0 + (t1 - t0) * (s - s0) / np.maximum(s1 - s0, 1e-300)
+        for _ in range(4):
+            residual = s0 + self._integral(t0, t) - s
+            t = np.clip(t + residual / np.maximum(self.speed(t), 1e-300), t1, t0)
+        return t
+
+    # -- landmarks -----------------------------------------------------------------
+    @property
+    def apex(self):
+        """Return the highest point (x, y) of the arc [m], as a (2,) array."""
+        t_apex = math.atan2(self.k, self.h)
+        return np.array([self.l * math.cos(t_apex), math.hypot(self.h, self.k)])
+
+    @property
+    def theta_apex(self):
+        """Return the paper's parameter of the apex [rad]."""
+        return math.atan2(self.k, self.h) + self.theta_T2
+
+    @property
+    def apex_height(self):
+        """Apex height above the lower tangent point [m] (the paper's reported H*)."""
+        return math.hypot(self.h, self.k) + abs(self.h)
+
+    @property
+    def min_radius(self):
+        """Smallest radius of curvature on the arc, b**2 / a [m]."""
+        return self.b * self.b / self.a
+
+    @property
+    def end_radius(self):
+        """Radius of curvature at T1 and T2, k**2 / l [m]."""
+        return self.k * self.k / self.l
+
+
+def require_finite_h(h):
+    """Return the half rise as float; any finite value is allowed."""
+    return require_range('h', h)
+
+
+def paper_apex(a, b, phi):
+    """
+    Return the apex (x*, y*) by the paper's eqs. (21)-(25), as a (2,) array.
+
+    Eq. (24) gives tan(theta*); of its two solutions we take the upper one.
+    """
+    big_a = math.cos(phi) ** 2 / a ** 2 + math.sin(phi) ** 2 / b ** 2
+    big_b = math.sin(2 * phi) / a ** 2 - math.sin(2 * phi) / b ** 2
+    theta = math.atan((2 * big_a * a * math.cos(phi) + big_b * a * math.sin(phi))
+                      / (2 * big_a * b * math.sin(phi) - big_b * b * math.cos(phi)))
+    candidates = []
+    for candidate in (theta, theta + math.pi):
+        candidates.append((
+            a * math.cos(phi) * math.cos(candidate) - b * math.sin(phi) * math.sin(candidate),
+            a * math.sin(phi) * math.cos(candidate) + b * math.cos(phi) * math.sin(candidate)))
+    return np.array(max(candidates, key=lambda point: point[1]))
+
+
+def arc_for_policy(half_width, h, policy):
+    """Return the EllipticArc that ``policy`` chooses for half-width l and half-rise h."""
+    if policy.kind == 'paper':
+        k = conjugate_k_from_phi(half_width, h, paper_phi(half_width, h))
+    elif policy.kind == 'apex_clearance':
+        clearance = policy.apex_clearance
+        k = math.sqrt(clearance * clearance + 2.0 * clearance * abs(h))
+    else:
+        k = _k_for_min_radius(half_width, h, policy.min_radius)
+    return EllipticArc(half_width, h, k)
+
+
+def _min_radius_of(half_width, h, k):
+    """Return b**2 / a for the tangent ellipses of conjugate semi-diameters k (array)."""
+    total = half_width * half_width + h * h + k * k
+    spread = np.sqrt(((half_width - k) ** 2 + h * h) * ((half_width + k) ** 2 + h * h))
+    a_squared = 0.5 * (total + spread)
+    return (half_width * k) ** 2 / a_squared ** 1.5
+
+
+def _k_for_min_radius(half_width, h, min_radius):
+    """
+    Return the smallest k whose arc has min radius >= ``min_radius`` (shortest such arc).
+
+    The arc length grows with k (the arcs are nested), and b**2/a first grows
+    then falls with k, so the answer is on the rising branch.
+    """
+    scale = math.hypot(half_width, h)
+    grid = np.geomspace(1e-6 * scale, 50.0 * scale, 400)
+    radii = _min_radius_of(half_width, h, grid)
+    best = int(np.argmax(radii))
+    if radii[best] < min_radius:
+        raise DegenerateGeometryError(
+            f'min_radius: expected at most {radii[best]:.6g} m (the largest smallest-radius '
+            f'any tangent ellipse reaches for l = {half_width:.6g} m, h = {h:.6g} m), '
+            f'got {min_radius:.6g} m')
+    first = int(np.argmax(radii >= min_radius))
+    if first == 0:
+        return float(grid[0])
+    low, high = grid[first - 1], grid[first]
+    for _ in range(60):
+        middle = 0.5 * (low + high)
+        if _min_radius_of(half_width, h, middle) >= min_radius:
+            high = middle
+        else:
+            low = middle
+    return float(high)
+
+
+@dataclass(frozen=True)
+class PathSamples:
+    """
+    Samples of the composite path by arc length s; every array has shape (N, 3).
+
+    Attributes
+    ----------
+    position : numpy.ndarray
+        TCP position in the base frame [m].
+    tangent : numpy.ndarray
+        Unit tangent dp/ds.
+    curvature : numpy.ndarray
+        d2p/ds2 [1/m], the curvature vector (its norm is the curvature).
+    curvature_rate : numpy.ndarray
+        d3p/ds3 [1/m**2].
+
+    """
+
+    position: np.ndarray
+    tangent: np.ndarray
+    curvature: np.ndarray
+    curvature_rate: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class PickPlacePath:
+    """
+    The composite path: lift P1 -> T1, arc T1 -> T2, descent T2 -> P2 (base frame, m).
+
+    Build it with :func:`plan_path`. A pure vertical move (pick and place on
+    one vertical) has no arc: one straight segment, stored as the lift when
+    it goes up and as the descent when it goes down.
+
+    Attributes
+    ----------
+    pick, place : numpy.ndarray
+        P1 and P2, shape (3,).
+    tangent_1, tangent_2 : numpy.ndarray
+        T1 and T2, shape (3,).
+    arc : EllipticArc or None
+        The arc in the paper frame; None for a pure vertical move.
+    direction : numpy.ndarray
+        Horizontal unit vector u from P1 towards P2, shape (3,) (zero for a
+        vertical move).
+    segment_lengths : numpy.ndarray
+        Lengths of (lift, arc, descent) [m], shape (3,).
+
+    """
+
+    pick: np.ndarray
+    place: np.ndarray
+    tangent_1: np.ndarray
+    tangent_2: np.ndarray
+    arc: object
+    direction: np.ndarray
+    segment_lengths: np.ndarray
+
+    @property
+    def segment_ends(self):
+        """Arc length at P1, T1, T2, P2 [m], shape (4,)."""
+        return np.concatenate(([0.0], np.cumsum(self.segment_lengths)))
+
+    @property
+    def length(self):
+        """Total path length [m]."""
+        return float(np.sum(self.segment_lengths))
+
+    @property
+    def midpoint(self):
+        """Origin of the paper frame in the base frame, shape (3,)."""
+        return 0.5 * (self.tangent_1 + self.tangent_2)
+
+    def to_base(self, points):
+        """Map paper-frame points (N, 2) to base-frame points (N, 3)."""
+        points = np.asarray(points, dtype=float)
+        vertical = np.array([0.0, 0.0, 1.0])
+        return (self.midpoint + points[..., :1] * self.direction
+                + points[..., 1:2] * vertical)
+
+    @property
+    def apex(self):
+        """Highest point of the arc in the base frame, shape (3,) (the higher end if no arc)."""
+        if self.arc is None:
+            return self.pick if self.pick[2] >= self.place[2] else self.place
+        return self.to_base(self.arc.apex)
+
+    def evaluate(self, s):
+        """
+        Sample the path at arc lengths ``s`` (N,) [m], clipped to [0, length].
+
+        Returns
+        -------
+        PathSamples
+            Position, unit tangent and the second and third derivatives by s.
+
+        """
+        s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, self.length)
+        count = s.shape[0]
+        position = np.empty((count, 3))
+        tangent = np.zeros((count, 3))
+        curvature = np.zeros((count, 3))
+        rate = np.zeros((count, 3))
+        s_t1, s_t2 = self.segment_ends[1], self.segment_ends[2]
+        up = np.array([0.0, 0.0, 1.0])
+        lift = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
+        position[lift] = self.pick + s[lift, None] * up
+        tangent[lift] = up
+        descent = (s >= s_t2) & ~lift & (self.segment_lengths[2] > 0.0)
+        position[descent] = self.tangent_2 - (s[descent, None] - s_t2) * up
+        tangent[descent] = -up
+        on_arc = ~(lift | descent)
+        if np.any(on_arc):
+            self._evaluate_arc(s[on_arc] - s_t1, on_arc, position, tangent, curvature, rate)
+        return PathSamples(position, tangent, curvature, rate)
+
+    def _evaluate_arc(self, s_arc, mask, position, tangent, curvature, rate):
+        """Fill the arc samples: derivatives by s from those by t (g = ds/dt = -|P'|)."""
+        arc = self.arc
+        t = arc.t_from_s(s_arc)
+        p = arc.point(t)
+        d1 = arc.derivative(t)
+        d2 = -p
+        d3 = -d1
+        sigma = np.linalg.norm(d1, axis=-1)
+        sigma_1 = np.einsum('ij,ij->i', d1, d2) / sigma
+        sigma_2 = ((np.einsum('ij,ij->i', d2, d2) + np.einsum('ij,ij->i', d1, d3)) / sigma
+                   - sigma_1 ** 2 / sigma)
+        g, g1, g2 = -sigma, -sigma_1, -sigma_2
+        r_s = d1 / g[:, None]
+        r_ss = (d2 - g1[:, None] * r_s) / (g * g)[:, None]
+        r_sss = (d3 - g2[:, None] * r_s - 3.0 * (g * g1)[:, None] * r_ss) / (g ** 3)[:, None]
+        position[mask] = self.to_base(p)
+        vertical = np.array([0.0, 0.0, 1.0])
+        for out, value in ((tangent, r_s), (curvature, r_ss), (rate, r_sss)):
+            out[mask] = value[:, :1] * self.direction + value[:, 1:2] * vertical
+
+
+def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=None):
+    """
+    Build the composite path from pick P1 to place P2.
+
+    Parameters
+    ----------
+    pick, place : array_like
+        P1 and P2 in the base frame [m], shape (3,).
+    pick_clearance, place_clearance : float
+        Vertical segment lengths c1, c2 [m], in [0, 1].
+    policy : ArcPolicy, optional
+        How the ellipse is chosen; the paper's rule by default.
+
+    Returns
+    -------
+    PickPlacePath
+
+    Raises
+    ------
+    InvalidInputError
+        Non-finite coordinates or clearances out of range.
+    DegenerateGeometryError
+        Pick and place coincide, or the arc policy admits no ellipse.
+
+    """
+    pick = require_point('pick', pick)
+    place = require_point('place', place)
+    c1 = require_range('pick_clearance', pick_clearance, 0.0, 1.0, unit='m')
+    c2 = require_range('place_clearance', place_clearance, 0.0, 1.0, unit='m')
+    policy = policy or ArcPolicy()
+    offset = place - pick
+    horizontal = math.hypot(offset[0], offset[1])
+    if np.linalg.norm(offset) < MIN_MOVE_DISTANCE:
+        raise DegenerateGeometryError(
+            f'pick and place: expected points at least {MIN_MOVE_DISTANCE:g} m apart, '
+            f'got {np.linalg.norm(offset):.3g} m (pick {pick.tolist()}, place {place.tolist()})')
+    if horizontal < MIN_HORIZONTAL_DISTANCE:
+        # One vertical straight line: the clearances have nothing to clear.
+        rise = float(offset[2])
+        lengths = np.array([max(rise, 0.0), 0.0, max(-rise, 0.0)])
+        top = pick if rise < 0 else place
+        return PickPlacePath(pick, place, top.copy(), top.copy(), None, np.zeros(3), lengths)
+    up = np.array([0.0, 0.0, 1.0])
+    tangent_1 = pick + c1 * up
+    tangent_2 = place + c2 * up
+    direction = np.array([offset[0], offset[1], 0.0]) / horizontal
+    arc = arc_for_policy(0.5 * horizontal, 0.5 * float(tangent_2[2] - tangent_1[2]), policy)
+    lengths = np.array([c1, arc.length, c2])
+    return PickPlacePath(pick, place, tangent_1, tangent_2, arc, direction, lengths)

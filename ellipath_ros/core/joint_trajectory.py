@@ -1,0 +1,674 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Joint trajectories for ros2_control's joint_trajectory_controller (JTC), without ROS.
+
+A planned Cartesian motion (anything with the :class:`Motion` protocol) is turned into joint
+knots with positions, velocities and accelerations. Given all three, JTC interpolates every
+joint between consecutive knots with the quintic polynomial that matches them at both ends
+(``Trajectory::interpolate_between_points`` in ``joint_trajectory_controller/src/
+trajectory.cpp``); :func:`quintic_interpolate` reproduces it. :func:`minimal_knots` picks few
+knots such that this interpolation, mapped back through forward kinematics, stays within a
+tolerance of the planned TCP path. :func:`validate_jtc` mirrors JTC's acceptance rules and
+:func:`check_joint_limits` the actuator limits.
+
+Arrays: times have shape (K,) [s]; positions, velocities and accelerations (K, 3)
+[rad, rad/s, rad/s^2], column i for arm i (joint ``joint_names[i]``).
+"""
+
+from dataclasses import dataclass
+import math
+from typing import Protocol
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.errors import LimitError
+from ellipath_ros.core.errors import require_range
+from ellipath_ros.core.errors import UnreachableError
+from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.kinematics import joint_accelerations
+from ellipath_ros.core.kinematics import joint_velocities
+import numpy as np
+
+DEFAULT_JOINT_NAMES = ('joint_1', 'joint_2', 'joint_3')
+
+# The final point must be at rest: |v|, |a| below this. JTC itself rejects a final velocity
+# above FLT_EPSILON (1.19e-7); we are stricter and also stop the acceleration.
+REST_TOLERANCE = 1e-9
+
+# Segments are accepted when the error on their check grid is below SAFETY * tolerance: the
+# grid can miss the true peak between two samples by a little.
+_SAFETY = 0.95
+# First guess of the knot spacing [s]; refinement and pruning fix it where needed.
+_INITIAL_STEP = 0.05
+# Trials of error-density re-placement after the first refine-and-prune search.
+_REPLACEMENTS = 6
+
+
+class Motion(Protocol):
+    """A planned TCP motion, as the planner delivers it."""
+
+    duration: float  # s, > 0
+
+    def evaluate(self, t):
+        """
+        Return TCP position, velocity, acceleration and jerk at times ``t``.
+
+        ``t`` has shape (N,) with values in [0, duration]; each returned array has shape
+        (N, 3), base frame, SI units.
+        """
+
+
+class TrajectoryRejectedError(InvalidInputError):
+    """A joint trajectory that joint_trajectory_controller would (or should) reject."""
+
+
+@dataclass(frozen=True, eq=False)
+class JointTrajectoryData:
+    """
+    A joint trajectory ready to become a ``trajectory_msgs/JointTrajectory``.
+
+    Attributes
+    ----------
+    joint_names : tuple of str
+        Three unique joint names, arm 0, 1, 2.
+    time_from_start : numpy.ndarray, shape (K,)
+        Times of the points [s], >= 0 and strictly increasing, K >= 1.
+    positions : numpy.ndarray, shape (K, 3)
+        Joint angles [rad].
+    velocities : numpy.ndarray, shape (K, 3)
+        Joint velocities [rad/s].
+    accelerations : numpy.ndarray, shape (K, 3)
+        Joint accelerations [rad/s^2].
+
+    The arrays are read-only float copies; every entry is finite. Whether the last point is
+    at rest, and the names expected by the controller, are checked by :func:`validate_jtc`.
+
+    """
+
+    joint_names: tuple
+    time_from_start: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+    def __post_init__(self):
+        """Convert to read-only float arrays and check their shapes and values."""
+        fields = _check_structure(self, InvalidInputError)
+        for field, value in zip(('joint_names', 'time_from_start', 'positions', 'velocities',
+                                 'accelerations'), fields):
+            object.__setattr__(self, field, value)
+
+    @property
+    def duration(self):
+        """Time of the last point [s]."""
+        return float(self.time_from_start[-1])
+
+
+def _check_structure(traj, error):
+    """
+    Check names, times and the three (K, 3) arrays of ``traj``; return them converted.
+
+    Duck-typed: ``traj`` needs the attributes of :class:`JointTrajectoryData`, holding any
+    array-likes. Raises ``error`` naming the first problem.
+    """
+    names = getattr(traj, 'joint_names', None)
+    if isinstance(names, str) or not hasattr(names, '__len__'):
+        raise error(f'joint_names: expected a sequence of 3 names, got {names!r}')
+    names = tuple(names)
+    if len(names) == 0:
+        raise error('joint_names: expected 3 names, got none (JTC: "Empty joint names")')
+    if not all(isinstance(item, str) and item for item in names):
+        raise error(f'joint_names: expected non-empty strings, got {names!r}')
+    if len(set(names)) != len(names):
+        raise error(f'joint_names: expected unique names, got {names!r}')
+    if len(names) != 3:
+        # JTC rejects partial goals unless allow_partial_joints_goal is set (default false).
+        raise error(f'joint_names: expected 3 names (one per arm), got {len(names)}')
+    times = _float_array(traj, 'time_from_start', error)
+    if times.ndim != 1 or times.size == 0:
+        raise error(f'time_from_start: expected shape (K,) with K >= 1 points, got shape '
+                    f'{times.shape}')
+    count = times.size
+    _require_finite_rows('time_from_start', times[:, np.newaxis], error)
+    if times[0] < 0.0:
+        raise error(f'time_from_start[0]: expected a time >= 0 s, got {times[0]!r}')
+    steps = np.diff(times)
+    if (steps <= 0.0).any():
+        index = int(np.argmax(steps <= 0.0)) + 1
+        raise error(f'time_from_start[{index}]: expected a time > time_from_start[{index - 1}]'
+                    f' = {times[index - 1]!r} s (strictly increasing), got {times[index]!r}')
+    arrays = []
+    for field in ('positions', 'velocities', 'accelerations'):
+        array = _float_array(traj, field, error)
+        if array.shape != (count, len(names)):
+            raise error(f'{field}: expected shape ({count}, {len(names)}) (one row of '
+                        f'{len(names)} per point), got shape {array.shape}')
+        _require_finite_rows(field, array, error)
+        arrays.append(array)
+    return (names, times, *arrays)
+
+
+def _float_array(traj, field, error):
+    """Return a read-only float copy of ``traj.field``, or raise ``error``."""
+    value = getattr(traj, field, None)
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise error(f'{field}: expected an array of finite numbers, got {value!r}') from None
+    array.setflags(write=False)
+    return array
+
+
+def _require_finite_rows(field, array, error):
+    """Raise ``error`` naming the first row of ``array`` with a non-finite entry."""
+    finite = np.isfinite(array).all(axis=1)
+    if not finite.all():
+        index = int(np.argmin(finite))
+        raise error(f'{field}[{index}]: expected finite values, got {array[index].tolist()}')
+
+
+def validate_jtc(traj, expect_names=None):
+    """
+    Raise unless joint_trajectory_controller (Jazzy) accepts ``traj`` and stops at its end.
+
+    Mirrors ``JointTrajectoryController::validate_trajectory_msg`` in
+    ros-controls/ros2_controllers, ``joint_trajectory_controller/src/
+    joint_trajectory_controller.cpp`` (the "// CHECK:" version of the Jazzy line), which
+    rejects a message when:
+
+    * ``joint_names`` is empty ("Empty joint names on incoming trajectory"), has another size
+      than the controller's joints while ``allow_partial_joints_goal`` is false (the default),
+      or names a joint the controller does not have;
+    * ``points`` is empty ("Empty trajectory received");
+    * the last point has a velocity above ``FLT_EPSILON`` while
+      ``allow_nonzero_velocity_at_trajectory_end`` is false (the default since Jazzy,
+      ros2_controllers #834);
+    * ``header.stamp`` is non-zero and stamp + last ``time_from_start`` is in the past (zero
+      means "start now");
+    * ``time_from_start`` is not strictly increasing, compared as ``rclcpp::Duration`` (whole
+      nanoseconds) from point 1 on; the first point's time is not checked, and 0 is allowed;
+    * a point's positions differ in size from ``joint_names``, or its velocities or
+      accelerations are neither empty nor of that size (empty ones are accepted);
+    * a point has effort entries and the controller has no effort command interface.
+
+    JTC does not check for NaN. This function is stricter where a stricter rule is what we
+    need: exactly 3 unique names (equal to ``expect_names`` in order, if given; JTC would
+    also accept a permutation), velocities and accelerations present (the quintic
+    interpolation needs both), every value finite, times >= 0 and distinct in nanoseconds,
+    final velocity and acceleration within REST_TOLERANCE of zero. Not represented here and
+    left to the ROS layer: publish ``header.stamp`` zero, no effort entries. A first point at
+    ``time_from_start`` 0 is commanded immediately, with no interpolation from the current
+    state, so it must be where the robot is.
+
+    Parameters
+    ----------
+    traj : JointTrajectoryData or any object with the same attributes
+        The trajectory; the attributes may hold array-likes (e.g. lists from a message).
+    expect_names : sequence of str, optional
+        The controller's joints, in order.
+
+    Raises
+    ------
+    TrajectoryRejectedError
+        Naming the first broken rule (a subclass of InvalidInputError).
+
+    """
+    names, times, _, velocities, accelerations = _check_structure(
+        traj, TrajectoryRejectedError)
+    if expect_names is not None and names != tuple(expect_names):
+        raise TrajectoryRejectedError(
+            f'joint_names: expected {tuple(expect_names)!r}, got {names!r}')
+    nanoseconds = np.round(times * 1e9)
+    same = np.diff(nanoseconds) <= 0.0
+    if same.any():
+        index = int(np.argmax(same)) + 1
+        raise TrajectoryRejectedError(
+            f'time_from_start[{index}]: expected a time at least 1 ns after '
+            f'{times[index - 1]!r} s (JTC compares whole nanoseconds), got {times[index]!r}')
+    for field, values, unit in (('velocities', velocities, 'rad/s'),
+                                ('accelerations', accelerations, 'rad/s^2')):
+        moving = np.abs(values[-1]) >= REST_TOLERANCE
+        if moving.any():
+            joint = int(np.argmax(moving))
+            raise TrajectoryRejectedError(
+                f'{field}[-1] of {names[joint]}: expected 0 {unit} at the last point '
+                f'(|value| < {REST_TOLERANCE:g}), got {values[-1, joint]!r}')
+
+
+def quintic_interpolate(traj, t):
+    """
+    Sample the trajectory the way JTC does when positions, velocities, accelerations are set.
+
+    Between knots k and k+1 every joint follows the quintic polynomial matching position,
+    velocity and acceleration at both ends (``Trajectory::interpolate_between_points``);
+    sample k applies for ``t_k <= t < t_(k+1)``. At and after the last knot JTC holds the last
+    point. Before the first knot JTC interpolates from the robot's state at reception, which
+    is not known here: this returns the first point there.
+
+    Parameters
+    ----------
+    traj : JointTrajectoryData
+        The knots.
+    t : array_like, shape (N,) or scalar
+        Times from start [s].
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Positions [rad], velocities [rad/s], accelerations [rad/s^2], each (N, 3) (or (3,)
+        for a scalar ``t``).
+
+    """
+    times = np.asarray(t, dtype=float)
+    scalar = times.ndim == 0
+    times = np.atleast_1d(times)
+    knots = traj.time_from_start
+    if knots.size == 1:
+        hold = np.zeros(times.shape, dtype=int)
+        result = (traj.positions[hold], traj.velocities[hold], traj.accelerations[hold])
+    else:
+        segment = np.clip(np.searchsorted(knots, times, side='right') - 1, 0, knots.size - 2)
+        coefficients = _quintic_coefficients(traj, segment, segment + 1)
+        offset = np.clip(times - knots[segment], 0.0, None)
+        result = tuple(array[:, 0] for array in _evaluate_quintic(
+            coefficients, offset[:, np.newaxis]))
+        after = times >= knots[-1]
+        for array, source in zip(result, (traj.positions, traj.velocities,
+                                          traj.accelerations)):
+            array[after] = source[-1]
+    return tuple(array[0] for array in result) if scalar else result
+
+
+def _quintic_coefficients(knots, start, end):
+    """
+    Polynomial coefficients in powers of ``t - t_start``, shape (S, 6, 3).
+
+    Same formulas as JTC's quintic branch; ``knots`` has the attributes of
+    JointTrajectoryData, ``start`` and ``end`` are index arrays (S,).
+    """
+    h = (knots.time_from_start[end] - knots.time_from_start[start])[:, np.newaxis]
+    q0, v0, a0 = knots.positions[start], knots.velocities[start], knots.accelerations[start]
+    q1, v1, a1 = knots.positions[end], knots.velocities[end], knots.accelerations[end]
+    dq = q1 - q0
+    h2 = h * h
+    c3 = (20.0 * dq - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (2.0 * h2 * h)
+    c4 = (-30.0 * dq + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1) * h2) / (
+        2.0 * h2 * h2)
+    c5 = (12.0 * dq - 6.0 * (v1 + v0) * h - (a0 - a1) * h2) / (2.0 * h2 * h2 * h)
+    return np.stack([q0, v0, 0.5 * a0, c3, c4, c5], axis=1)
+
+
+def _evaluate_quintic(coefficients, offset, derivatives=True):
+    """
+    Position, velocity, acceleration of polynomials (S, 6, 3) at offsets (S, M).
+
+    Returns three arrays of shape (S, M, 3), or only the positions if not ``derivatives``.
+    """
+    c = [coefficients[:, np.newaxis, k, :] for k in range(6)]
+    x = offset[:, :, np.newaxis]
+    position = ((((c[5] * x + c[4]) * x + c[3]) * x + c[2]) * x + c[1]) * x + c[0]
+    if not derivatives:
+        return position
+    velocity = (((5.0 * c[5] * x + 4.0 * c[4]) * x + 3.0 * c[3]) * x + 2.0 * c[2]) * x + c[1]
+    acceleration = ((20.0 * c[5] * x + 12.0 * c[4]) * x + 6.0 * c[3]) * x + 2.0 * c[2]
+    return position, velocity, acceleration
+
+
+def _motion_duration(motion):
+    """Return the motion's duration, checked."""
+    return require_range('motion.duration', getattr(motion, 'duration', None), 0.0,
+                         low_open=True, unit='s')
+
+
+def _evaluate(motion, times):
+    """Call ``motion.evaluate`` and check what comes back: four finite (N, 3) arrays."""
+    result = motion.evaluate(times)
+    try:
+        arrays = [np.asarray(item, dtype=float) for item in result]
+    except (TypeError, ValueError):
+        raise InvalidInputError('motion.evaluate: expected 4 arrays of shape (N, 3), got '
+                                f'{type(result).__name__}') from None
+    shapes = [array.shape for array in arrays]
+    if shapes != [(times.size, 3)] * 4:
+        raise InvalidInputError(f'motion.evaluate: expected 4 arrays of shape '
+                                f'({times.size}, 3), got shapes {shapes}')
+    for name, array in zip(('position', 'velocity', 'acceleration'), arrays):
+        finite = np.isfinite(array).all(axis=1)
+        if not finite.all():
+            index = int(np.argmin(finite))
+            raise InvalidInputError(f'motion {name} at t={times[index]:.6g} s: expected '
+                                    f'finite values, got {array[index].tolist()}')
+    return arrays
+
+
+def _joint_states(motion, geometry, times):
+    """Joint positions, velocities and accelerations of the motion at ``times`` (N,)."""
+    points, velocities, accelerations, _ = _evaluate(motion, times)
+    try:
+        q = inverse_kinematics(points, geometry, name='TCP position')
+        qdot = joint_velocities(points, q, velocities, geometry, name='TCP position')
+        qddot = joint_accelerations(points, q, velocities, accelerations, qdot, geometry,
+                                    name='TCP position')
+    except UnreachableError as error:
+        index = error.index
+        wrapped = UnreachableError(f'motion at t={times[index]:.6g} s: {error}')
+        wrapped.index = index
+        raise wrapped from error
+    return q, qdot, qddot
+
+
+def _names(joint_names):
+    """Return the joint names as a tuple of 3 unique non-empty strings."""
+    names = tuple(joint_names)
+    if (len(names) != 3 or len(set(names)) != 3
+            or not all(isinstance(item, str) and item for item in names)):
+        raise InvalidInputError(f'joint_names: expected 3 unique names, got {names!r}')
+    return names
+
+
+def sample_joint_trajectory(motion, geometry, period, joint_names=DEFAULT_JOINT_NAMES):
+    """
+    Sample the motion at a fixed period and convert every sample to joint space.
+
+    Parameters
+    ----------
+    motion : Motion
+        The planned TCP motion.
+    geometry : DeltaGeometry
+        Robot dimensions and joint position limits.
+    period : float
+        Sampling period [s], > 0. Samples are at ``0, period, 2 period, ...`` and exactly at
+        ``duration``; a regular sample closer than ``1e-6 period`` to ``duration`` is dropped,
+        so the last interval lies in ``(1e-6 period, period * (1 + 1e-6)]``.
+    joint_names : sequence of str
+        Names of the three joints, arm 0, 1, 2.
+
+    Returns
+    -------
+    JointTrajectoryData
+        One point per sample.
+
+    Raises
+    ------
+    UnreachableError
+        A sample is outside the workspace or at a singularity (names its time).
+
+    """
+    names = _names(joint_names)
+    duration = _motion_duration(motion)
+    step = require_range('period', period, 0.0, low_open=True, unit='s')
+    count = int(math.floor(duration / step))
+    times = np.arange(count + 1) * step
+    times = times[times < duration - 1e-6 * step]
+    times = np.append(times, duration)
+    q, qdot, qddot = _joint_states(motion, geometry, times)
+    return JointTrajectoryData(names, times, q, qdot, qddot)
+
+
+class _Knots:
+    """Knot times and joint states during the knot search (plain mutable arrays)."""
+
+    def __init__(self, time_from_start, positions, velocities, accelerations):
+        self.time_from_start = time_from_start
+        self.positions = positions
+        self.velocities = velocities
+        self.accelerations = accelerations
+
+    def take(self, index):
+        """Keep the knots at ``index`` (sorted)."""
+        return _Knots(self.time_from_start[index], self.positions[index],
+                      self.velocities[index], self.accelerations[index])
+
+
+def _segment_errors(motion, geometry, knots, start, end, fractions):
+    """
+    Largest TCP deviation of JTC's interpolation on each segment start[s] -> end[s].
+
+    The check grid of a segment is its interior at ``fractions`` (M,) of its length. Returns
+    shape (S,); a grid point whose interpolated joints cannot be assembled counts as inf.
+    """
+    t0 = knots.time_from_start[start]
+    length = knots.time_from_start[end] - t0
+    offset = length[:, np.newaxis] * fractions
+    coefficients = _quintic_coefficients(knots, start, end)
+    q = _evaluate_quintic(coefficients, offset, derivatives=False).reshape(-1, 3)
+    planned = _evaluate(motion, (t0[:, np.newaxis] + offset).ravel())[0]
+    reached = forward_kinematics(q, geometry, strict=False)
+    error = np.linalg.norm(reached - planned, axis=1).reshape(offset.shape)
+    return np.where(np.isnan(error), np.inf, error).max(axis=1)
+
+
+def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1e-4, *,
+                  check_samples=24, min_interval=1e-6):
+    """
+    Few knots whose JTC quintic interpolation follows the planned TCP path within tolerance.
+
+    Each knot carries the exact joint position, velocity and acceleration of the motion at
+    its time. A segment is accepted when, on a grid of ``check_samples`` interior points, the
+    forward kinematics of JTC's quintic interpolation deviates from the planned TCP position
+    by at most 0.95 ``tolerance`` (margin for peaks between grid points). Search:
+
+    1. refine: start from knots about 50 ms apart; split every rejected segment in half
+       (one vectorised evaluation per round) until all are accepted;
+    2. prune: test, for every interior knot at once, the segment that would replace it and
+       its two neighbours; drop the acceptable ones with the smallest errors, never two
+       adjacent knots in one round; repeat until no knot can be dropped;
+    3. re-place: halving leaves knots on a dyadic lattice, so try fewer knots spread evenly
+       over the measured error density (quintic error ~ h^6, see ``_equidistribute``); a
+       trial set replaces the current one only if all its segments pass (then it is pruned
+       too). At most six trials.
+
+    The result is locally minimal (no single knot can be removed), includes t = 0 and
+    t = duration, and is typically within one or two knots of the greedy optimum.
+
+    Parameters
+    ----------
+    motion : Motion
+        The planned TCP motion.
+    geometry : DeltaGeometry
+        Robot dimensions and joint position limits.
+    joint_names : sequence of str
+        Names of the three joints, arm 0, 1, 2.
+    tolerance : float
+        Largest allowed TCP deviation [m], > 0.
+    check_samples : int
+        Interior check points per segment, >= 20.
+    min_interval : float
+        Shortest allowed knot interval [s]; the search gives up below it.
+
+    Returns
+    -------
+    tuple of (JointTrajectoryData, float)
+        The knots, and the largest TCP deviation found on the check grids of the final
+        segments [m].
+
+    Raises
+    ------
+    UnreachableError
+        A knot or check point is outside the workspace or at a singularity.
+    InvalidInputError
+        The tolerance cannot be met with knots at least ``min_interval`` apart.
+
+    """
+    names = _names(joint_names)
+    duration = _motion_duration(motion)
+    accept = _SAFETY * require_range('tolerance', tolerance, 0.0, low_open=True, unit='m')
+    samples = int(require_range('check_samples', check_samples, 20.0))
+    shortest = require_range('min_interval', min_interval, 0.0, low_open=True, unit='s')
+    fractions = np.arange(1, samples + 1) / (samples + 1.0)
+
+    def errors_of(knots, start, end):
+        return _segment_errors(motion, geometry, knots, start, end, fractions)
+
+    times = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
+    knots = _Knots(times, *_joint_states(motion, geometry, times))
+    index = np.arange(times.size)
+    errors = errors_of(knots, index[:-1], index[1:])
+    knots, errors = _refine(motion, geometry, knots, errors, accept, shortest, errors_of)
+    knots, errors = _prune(knots, errors, accept, errors_of)
+    # Dyadic halving leaves knots on a coarse lattice: re-place them from the measured error
+    # density with fewer segments, and keep a set only if every segment passes.
+    times, measured = knots.time_from_start, errors
+    target = min(_segment_count(times, measured, accept), times.size - 2)
+    for _ in range(_REPLACEMENTS):
+        if target < 1:
+            break
+        trial_times = _equidistribute(times, measured, target)
+        if np.diff(trial_times).min() < shortest:
+            break
+        trial = _Knots(trial_times, *_joint_states(motion, geometry, trial_times))
+        index = np.arange(trial_times.size)
+        trial_errors = errors_of(trial, index[:-1], index[1:])
+        times, measured = trial_times, trial_errors
+        if (trial_errors <= accept).all():
+            knots, errors = _prune(trial, trial_errors, accept, errors_of)
+            target = min(_segment_count(times, measured, accept),
+                         knots.time_from_start.size - 2)
+        else:
+            target = max(_segment_count(times, measured, accept), target + 1)
+            if target >= knots.time_from_start.size - 1:
+                break
+    data = JointTrajectoryData(names, knots.time_from_start, knots.positions,
+                               knots.velocities, knots.accelerations)
+    return data, float(errors.max())
+
+
+def _segment_count(times, errors, accept):
+    """Estimate how many segments keep every error at ``accept``; see :func:`_equidistribute`."""
+    total = np.sum(np.maximum(errors, 1e-300) ** (1.0 / 6.0))
+    return max(1, math.ceil(total / accept ** (1.0 / 6.0)))
+
+
+def _equidistribute(times, errors, count):
+    """
+    Return ``count + 1`` knot times that spread an estimated error density evenly.
+
+    On a smooth stretch the quintic's error grows like ``C h^6`` with the segment length h, so
+    ``(error / h^6)^(1/6)``, constant on each measured segment, is a local density whose
+    integral over a segment is ``error^(1/6)``. Knots at equal steps of its integral balance
+    the segment errors.
+    """
+    weights = np.maximum(errors, 1e-300) ** (1.0 / 6.0)
+    cumulative = np.concatenate([[0.0], np.cumsum(weights)])
+    new_times = np.interp(np.linspace(0.0, cumulative[-1], count + 1), cumulative, times)
+    new_times[0], new_times[-1] = times[0], times[-1]
+    return new_times
+
+
+def _refine(motion, geometry, knots, errors, accept, shortest, errors_of):
+    """Halve rejected segments until every segment error is <= accept."""
+    while True:
+        rejected = errors > accept
+        if not rejected.any():
+            return knots, errors
+        times = knots.time_from_start
+        lengths = (times[1:] - times[:-1])[rejected]
+        if lengths.min() < 2.0 * shortest:
+            worst = int(np.flatnonzero(rejected)[np.argmin(lengths)])
+            raise InvalidInputError(
+                f'tolerance: expected a tolerance the motion can meet with knots at least '
+                f'{shortest:g} s apart, got {accept / _SAFETY:g} m (error '
+                f'{errors[worst]:.3g} m left near t={times[worst]:.6g} s)')
+        middle = 0.5 * (times[:-1] + times[1:])[rejected]
+        states = _joint_states(motion, geometry, middle)
+        order = np.argsort(np.concatenate([times, middle]), kind='stable')
+        merged = _Knots(*(np.concatenate([old, new])[order] for old, new in zip(
+            (times, knots.positions, knots.velocities, knots.accelerations),
+            (middle, *states))))
+        is_new = np.concatenate([np.zeros(times.size, bool), np.ones(middle.size, bool)])
+        is_new = is_new[order]
+        child = is_new[:-1] | is_new[1:]
+        new_errors = np.empty(child.size)
+        new_errors[~child] = errors[~rejected]
+        start = np.flatnonzero(child)
+        new_errors[child] = errors_of(merged, start, start + 1)
+        knots, errors = merged, new_errors
+
+
+def _prune(knots, errors, accept, errors_of):
+    """Drop interior knots while the segment replacing one and its neighbours is accepted."""
+    while knots.time_from_start.size > 2:
+        count = knots.time_from_start.size
+        candidates = np.arange(count - 2)
+        merged_errors = errors_of(knots, candidates, candidates + 2)  # drops knot c + 1
+        acceptable = np.flatnonzero(merged_errors <= accept)
+        if acceptable.size == 0:
+            break
+        removed = np.zeros(count, bool)
+        for candidate in acceptable[np.argsort(merged_errors[acceptable], kind='stable')]:
+            if not (removed[candidate] or removed[candidate + 2]):
+                removed[candidate + 1] = True
+        kept = np.flatnonzero(~removed)
+        left = kept[:-1]
+        errors = np.where(kept[1:] - left == 1, errors[np.minimum(left, count - 2)],
+                          merged_errors[np.minimum(left, count - 3)])
+        knots = knots.take(kept)
+    return knots, errors
+
+
+def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
+    """
+    Raise :class:`LimitError` at the first sample that breaks a joint limit.
+
+    Checks ``joint_min <= q <= joint_max``, ``|q_dot| <= max_velocity`` and
+    ``|q_ddot| <= max_acceleration`` at every point of ``traj``, in time order (position,
+    then velocity, then acceleration; joints in order at one sample).
+
+    Parameters
+    ----------
+    traj : JointTrajectoryData
+        Densely sampled trajectory, or knots.
+    geometry : DeltaGeometry
+        Gives the joint position limits.
+    joint_limits : JointLimits
+        Velocity and acceleration limits.
+    samples_per_segment : int
+        If > 0, also check JTC's quintic interpolation at this many interior points of every
+        segment (use it for knots: the polynomial may peak between them).
+
+    Raises
+    ------
+    LimitError
+        Naming the joint, the quantity, the bound, the value and its time.
+
+    """
+    times = traj.time_from_start
+    positions, velocities, accelerations = (traj.positions, traj.velocities,
+                                            traj.accelerations)
+    extra = int(require_range('samples_per_segment', samples_per_segment, 0.0))
+    if extra > 0 and times.size > 1:
+        fractions = np.arange(extra + 1) / (extra + 1.0)
+        grid = (times[:-1, np.newaxis] + np.diff(times)[:, np.newaxis] * fractions).ravel()
+        times = np.append(grid, times[-1])
+        positions, velocities, accelerations = quintic_interpolate(traj, times)
+    low, high = geometry.joint_min, geometry.joint_max
+    vmax, amax = joint_limits.max_velocity, joint_limits.max_acceleration
+    broken = np.stack([(positions < low) | (positions > high),
+                       np.abs(velocities) > vmax,
+                       np.abs(accelerations) > amax], axis=1)  # (K, quantity, joint)
+    if not broken.any():
+        return
+    sample, quantity, joint = np.unravel_index(int(np.argmax(broken.ravel())), broken.shape)
+    name = traj.joint_names[joint]
+    when = f'at t={times[sample]:.6g} s'
+    if quantity == 0:
+        raise LimitError(f'{name} position: expected a value in [{low:g}, {high:g}] rad, got '
+                         f'{positions[sample, joint]:.6g} {when}')
+    if quantity == 1:
+        raise LimitError(f'{name} velocity: expected |q\u0307| \u2264 {vmax:g} rad/s, got '
+                         f'{velocities[sample, joint]:.6g} {when}')
+    raise LimitError(f'{name} acceleration: expected |q\u0308| \u2264 {amax:g} rad/s^2, got '
+                     f'{accelerations[sample, joint]:.6g} {when}')

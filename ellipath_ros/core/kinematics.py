@@ -1,0 +1,575 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Closed-form kinematics of the rotary (Clavel) Delta robot, vectorised over points.
+
+Conventions (DESIGN.md section 2): SI units, base frame with z up, the robot works below its
+base so the tool centre point (TCP, the effector centre) has z < 0. Arm ``i`` (i = 0, 1, 2)
+sits at azimuth ``120 deg * i`` from +x towards +y; its actuator axis is horizontal, tangent to
+the base circle of radius ``R`` at ``A_i = R e_i`` with ``e_i`` the radial unit vector. The
+joint angle ``q_i`` is the angle of upper arm ``i`` below the base plane: ``q = 0`` horizontal
+pointing outwards, ``q > 0`` pointing down. With ``z`` the vertical unit vector:
+
+* elbow ``B_i = A_i + L1 (cos q_i e_i - sin q_i z)``,
+* forearm joint on the effector ``C_i = p + r e_i``, ``p`` the TCP,
+* constraint ``|C_i - B_i| = L2`` (the parallelogram forearm keeps the effector level).
+
+Every function takes arrays of shape (N, 3) (points or joint angles, one row per sample) and
+returns arrays of shape (N, 3); a single sample of shape (3,) gives a result of shape (3,).
+Errors name the index of the first offending sample; an :class:`UnreachableError` raised here
+also carries that index as its ``index`` attribute.
+"""
+
+from dataclasses import dataclass
+import math
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.errors import require_range
+from ellipath_ros.core.errors import UnreachableError
+import numpy as np
+
+# |s_i . b_i| / (L1 L2) (IK) and |det A| / L2^3 (FK) below this count as singular: the rates
+# would be amplified by more than a million.
+SINGULARITY_TOLERANCE = 1e-6
+
+_AZIMUTHS = 2.0 * np.pi * np.arange(3) / 3.0
+# Row i: radial unit vector e_i, tangential unit vector t_i of arm i.
+_RADIAL = np.stack([np.cos(_AZIMUTHS), np.sin(_AZIMUTHS), np.zeros(3)], axis=1)
+_TANGENT = np.stack([-np.sin(_AZIMUTHS), np.cos(_AZIMUTHS), np.zeros(3)], axis=1)
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+@dataclass(frozen=True)
+class DeltaGeometry:
+    """
+    Dimensions and joint position limits of a rotary Delta robot.
+
+    Parameters
+    ----------
+    base_radius : float
+        ``R``, base centre to actuator axis [m].
+    effector_radius : float
+        ``r``, effector centre (TCP) to forearm joint [m].
+    upper_arm : float
+        ``L1``, actuator axis to elbow [m].
+    forearm : float
+        ``L2``, elbow to effector joint (parallelogram length) [m].
+    joint_min, joint_max : float
+        Joint position limits [rad], the same for the three arms.
+
+    Notes
+    -----
+    Default joint limits, for the default dimensions (R 0.200, r 0.045, L1 0.350, L2 0.800 m):
+
+    * ``joint_max = 1.95 rad`` (111.7 deg, arm pointing down and inwards). At
+      ``acos((r - R) / L1) = 2.03 rad`` the elbow crosses the circle of the effector joints
+      (``R + L1 cos q = r``): beyond it the forearm leans outwards, the parallelogram folds
+      towards its flipped configuration and the three elbows crowd under the base centre.
+      1.95 rad keeps the elbow 26 mm outside that circle.
+    * ``joint_min = -0.85 rad`` (-48.7 deg, arm raised). The upper arm rises at most
+      ``L1 sin 0.85 = 0.26 m`` above the actuator plane, keeping it clear of the base structure
+      and motor housings, and away from the folded elbow of high, off-centre poses.
+    * The useful workspace, the cylinder of radius 0.4 m around the base axis for
+      z in [-1.0, -0.55] m, needs q in [-0.796, 1.919] rad (sampled on a fine grid), so it is
+      reachable with a margin of at least 0.03 rad at both limits.
+
+    """
+
+    base_radius: float = 0.200
+    effector_radius: float = 0.045
+    upper_arm: float = 0.350
+    forearm: float = 0.800
+    joint_min: float = -0.85
+    joint_max: float = 1.95
+
+    def __post_init__(self):
+        """Check every dimension and store them as floats."""
+        for field in ('base_radius', 'effector_radius', 'upper_arm', 'forearm'):
+            value = require_range(f'DeltaGeometry.{field}', getattr(self, field), 0.0,
+                                  low_open=True, unit='m')
+            object.__setattr__(self, field, value)
+        offset = abs(self.base_radius - self.effector_radius)
+        # A forearm no longer than the radial offset cannot hang the effector below the base.
+        require_range('DeltaGeometry.forearm', self.forearm, offset, low_open=True, unit='m')
+        for field in ('joint_min', 'joint_max'):
+            value = require_range(f'DeltaGeometry.{field}', getattr(self, field), -math.pi,
+                                  math.pi, unit='rad')
+            object.__setattr__(self, field, value)
+        if not self.joint_min < self.joint_max:
+            raise InvalidInputError(
+                f'DeltaGeometry.joint_max: expected a value > joint_min = {self.joint_min:g} '
+                f'rad, got {self.joint_max:g}')
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """
+    Velocity and acceleration limits of the three actuators.
+
+    Parameters
+    ----------
+    max_velocity : float
+        Largest allowed ``|q_dot|`` [rad/s].
+    max_acceleration : float
+        Largest allowed ``|q_ddot|`` [rad/s^2].
+
+    """
+
+    max_velocity: float = 10.0
+    max_acceleration: float = 200.0
+
+    def __post_init__(self):
+        """Check that both limits are finite and positive, and store them as floats."""
+        object.__setattr__(self, 'max_velocity', require_range(
+            'JointLimits.max_velocity', self.max_velocity, 0.0, low_open=True, unit='rad/s'))
+        object.__setattr__(self, 'max_acceleration', require_range(
+            'JointLimits.max_acceleration', self.max_acceleration, 0.0, low_open=True,
+            unit='rad/s^2'))
+
+
+def _unreachable(message, index):
+    """Build an UnreachableError that remembers the index of the offending sample."""
+    error = UnreachableError(message)
+    error.index = int(index)
+    return error
+
+
+def _fmt(row):
+    """Format one sample as ``(a, b, c)`` for messages."""
+    return '(' + ', '.join(f'{value:.6g}' for value in row) + ')'
+
+
+def _as_rows(name, value):
+    """Return ``value`` as a float array (N, 3) and whether the input was a single (3,) row."""
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f'{name}: expected an array of shape (N, 3) or (3,), '
+                                f'got {value!r}') from None
+    single = array.shape == (3,)
+    if single:
+        array = array[np.newaxis, :]
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidInputError(
+            f'{name}: expected an array of shape (N, 3) or (3,), got shape {array.shape}')
+    finite = np.isfinite(array).all(axis=1)
+    if not finite.all():
+        index = int(np.argmin(finite))
+        raise InvalidInputError(
+            f'{name}[{index}]: expected finite values, got {_fmt(array[index])}')
+    return array, single
+
+
+def _same_shape(name, array, reference, reference_name):
+    """Raise unless ``array`` has as many rows as ``reference``."""
+    if array.shape != reference.shape:
+        raise InvalidInputError(f'{name}: expected shape {reference.shape} like '
+                                f'{reference_name}, got shape {array.shape}')
+
+
+def _solve_ik(points, geometry):
+    """
+    Elbow-out IK of every arm; also return the discriminant and the arm-plane coordinates.
+
+    The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
+    tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
+    ``E cos q + F sin q + G = 0`` with ``E = -2 L1 u``, ``F = 2 L1 z`` and
+    ``G = u^2 + w^2 + z^2 + L1^2 - L2^2``. The half-angle substitution turns it into the
+    classic quadratic ``(G - E) tau^2 + 2 F tau + (G + E) = 0`` in ``tau = tan(q / 2)``, whose
+    discriminant is ``D = E^2 + F^2 - G^2``. Its two roots are written here in the equivalent
+    atan2 form ``q = -atan2(z, u) -+ atan2(sqrt(D), G)``, which needs no division by
+    ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
+    from the actuator axis to the effector joint).
+    """
+    offset = (geometry.effector_radius - geometry.base_radius) * _RADIAL
+    relative = points[:, np.newaxis, :] + offset  # C_i - A_i, shape (N, 3, 3)
+    u = np.einsum('nij,ij->ni', relative, _RADIAL)
+    w = np.einsum('nij,ij->ni', relative, _TANGENT)
+    z = np.broadcast_to(points[:, 2:3], u.shape)
+    upper, fore = geometry.upper_arm, geometry.forearm
+    g = u * u + w * w + z * z + upper * upper - fore * fore
+    discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
+    q = -np.arctan2(z, u) - np.arctan2(np.sqrt(np.maximum(discriminant, 0.0)), g)
+    return q, discriminant, u, w
+
+
+def _ik_failure(points, geometry, q, discriminant, u, w, name):
+    """Return the error for the first sample IK cannot serve, or None."""
+    above = points[:, 2] >= 0.0
+    outside = (discriminant < 0.0).any(axis=1)
+    beyond = ((q < geometry.joint_min) | (q > geometry.joint_max)).any(axis=1)
+    bad = above | outside | beyond
+    if not bad.any():
+        return None
+    index = int(np.argmax(bad))
+    where = (f'{name}[{index}]: expected a point reachable by the robot, '
+             f'got {_fmt(points[index])} m')
+    if above[index]:
+        return _unreachable(f'{where}, above the base plane (z must be < 0)', index)
+    if outside[index]:
+        arm = int(np.argmax(discriminant[index] < 0.0))
+        reach = math.hypot(u[index, arm], points[index, 2])
+        fore_sq = geometry.forearm ** 2 - w[index, arm] ** 2
+        fore = math.sqrt(fore_sq) if fore_sq > 0.0 else 0.0
+        side = 'far from' if reach > geometry.upper_arm + fore else 'close to'
+        return _unreachable(
+            f'{where}, outside the sphere of arm {arm}: too {side} its actuator axis for '
+            f'upper arm {geometry.upper_arm:g} m and forearm {geometry.forearm:g} m', index)
+    arm = int(np.argmax((q[index] < geometry.joint_min) | (q[index] > geometry.joint_max)))
+    return _unreachable(
+        f'{where}, joint limit: arm {arm} needs q={q[index, arm]:.6g} rad, outside '
+        f'[{geometry.joint_min:g}, {geometry.joint_max:g}] rad', index)
+
+
+def inverse_kinematics(points, geometry, *, name='points'):
+    """
+    Joint angles that put the TCP at the given points (closed form, elbow-out branch).
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3) or (3,)
+        TCP positions in the base frame [m].
+    geometry : DeltaGeometry
+        Robot dimensions and joint position limits.
+    name : str
+        Name of ``points`` in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3) or (3,)
+        Joint angles ``q`` [rad], column i for arm i.
+
+    Raises
+    ------
+    InvalidInputError
+        ``points`` has the wrong shape or a non-finite entry.
+    UnreachableError
+        A point is above the base plane, outside the sphere an arm can reach, or needs a joint
+        angle outside ``[joint_min, joint_max]``; the message names the first such point.
+
+    """
+    array, single = _as_rows(name, points)
+    q, discriminant, u, w = _solve_ik(array, geometry)
+    failure = _ik_failure(array, geometry, q, discriminant, u, w, name)
+    if failure is not None:
+        raise failure
+    return q[0] if single else q
+
+
+def reachable(points, geometry):
+    """
+    Tell, point by point, whether inverse kinematics succeeds.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3) or (3,)
+        TCP positions in the base frame [m]; non-finite rows count as unreachable.
+    geometry : DeltaGeometry
+        Robot dimensions and joint position limits.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,) or ()
+        True where the point is below the base, inside every arm's sphere and within the
+        joint position limits.
+
+    """
+    array = np.asarray(points, dtype=float)
+    single = array.shape == (3,)
+    if single:
+        array = array[np.newaxis, :]
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise InvalidInputError(
+            f'points: expected an array of shape (N, 3) or (3,), got shape {array.shape}')
+    finite = np.isfinite(array).all(axis=1)
+    safe = np.where(finite[:, np.newaxis], array, -1.0)
+    with np.errstate(invalid='ignore'):
+        q, discriminant, _, _ = _solve_ik(safe, geometry)
+    ok = (finite & (safe[:, 2] < 0.0) & (discriminant >= 0.0).all(axis=1)
+          & ((q >= geometry.joint_min) & (q <= geometry.joint_max)).all(axis=1))
+    return ok[0] if single else ok
+
+
+def check_reachable(points, geometry, *, name='points'):
+    """
+    Raise :class:`UnreachableError` naming the first point inverse kinematics cannot serve.
+
+    Same parameters and errors as :func:`inverse_kinematics`; returns None.
+    """
+    inverse_kinematics(points, geometry, name=name)
+
+
+def forward_kinematics(q, geometry, *, name='q', strict=True):
+    """
+    TCP positions for the given joint angles (closed-form three-sphere intersection).
+
+    The effector centre is at distance ``L2`` from the three points ``S_i = B_i - r e_i``, so
+    it lies on the line through the circumcentre of the triangle ``S_0 S_1 S_2``, normal to
+    its plane, at height ``sqrt(L2^2 - rho^2)`` with ``rho`` the circumradius. Of the two
+    solutions the lower one (the one below the base, z < 0) is returned.
+
+    Parameters
+    ----------
+    q : array_like, shape (N, 3) or (3,)
+        Joint angles [rad], column i for arm i. Joint position limits are not checked here.
+    geometry : DeltaGeometry
+        Robot dimensions.
+    name : str
+        Name of ``q`` in error messages.
+    strict : bool
+        If False, rows that cannot be assembled come back as NaN instead of raising (used to
+        measure how far an interpolated joint path strays).
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3) or (3,)
+        TCP positions in the base frame [m].
+
+    Raises
+    ------
+    InvalidInputError
+        ``q`` has the wrong shape or a non-finite entry.
+    UnreachableError
+        With ``strict``: the forearms cannot close the loop (spheres do not meet), the sphere
+        centres are collinear, or the lower solution is not below the base; names the first
+        such sample.
+
+    """
+    array, single = _as_rows(name, q)
+    points = _forward(array, geometry, name, strict)
+    return points[0] if single else points
+
+
+def _cross(a, b):
+    """Row-wise cross product of two (N, 3) arrays (np.cross is slow on small arrays)."""
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def _forward(q, geometry, name, strict=True):
+    """Vectorised three-sphere intersection; see :func:`forward_kinematics`."""
+    cos_q = np.cos(q)[:, :, np.newaxis]
+    sin_q = np.sin(q)[:, :, np.newaxis]
+    radial = geometry.base_radius - geometry.effector_radius + geometry.upper_arm * cos_q
+    centres = radial * _RADIAL - geometry.upper_arm * sin_q * _UP  # (N, 3, 3)
+    a = centres[:, 0] - centres[:, 2]
+    b = centres[:, 1] - centres[:, 2]
+    normal = _cross(a, b)
+    normal_sq = np.einsum('ij,ij->i', normal, normal)
+    a_sq = np.einsum('ij,ij->i', a, a)
+    b_sq = np.einsum('ij,ij->i', b, b)
+    # Collinear centres leave the intersection undefined (a x b vanishes).
+    collinear = normal_sq <= (1e-12 * np.sqrt(a_sq * b_sq)) ** 2
+    safe_sq = np.where(collinear, 1.0, normal_sq)
+    to_centre = _cross(a_sq[:, np.newaxis] * b - b_sq[:, np.newaxis] * a, normal)
+    to_centre /= 2.0 * safe_sq[:, np.newaxis]
+    height_sq = geometry.forearm ** 2 - np.einsum('ij,ij->i', to_centre, to_centre)
+    unit = normal / np.sqrt(safe_sq)[:, np.newaxis]
+    unit *= np.where(unit[:, 2] < 0.0, -1.0, 1.0)[:, np.newaxis]  # point it up
+    points = (centres[:, 2] + to_centre
+              - np.sqrt(np.maximum(height_sq, 0.0))[:, np.newaxis] * unit)
+    bad = collinear | (height_sq < 0.0) | (points[:, 2] >= 0.0)
+    if not strict:
+        points[bad] = np.nan
+    elif bad.any():
+        index = int(np.argmax(bad))
+        if collinear[index]:
+            why = 'the three forearm spheres have collinear centres'
+        elif height_sq[index] < 0.0:
+            why = 'the three forearms cannot meet at one effector'
+        else:
+            why = 'the effector would be above the base plane'
+        raise _unreachable(f'{name}[{index}]: expected joint angles of an assembled robot, '
+                           f'got {_fmt(q[index])} rad: {why}', index)
+    return points
+
+
+def _arm_vectors(points, q, geometry):
+    """
+    Forearm vectors and elbow derivatives, each of shape (N, 3, 3) (sample, arm, xyz).
+
+    Returns ``s_i = C_i - B_i``, ``b_i = dB_i/dq_i`` and ``c_i = d^2B_i/dq_i^2``.
+    """
+    cos_q = np.cos(q)[:, :, np.newaxis]
+    sin_q = np.sin(q)[:, :, np.newaxis]
+    upper = geometry.upper_arm
+    elbow = (geometry.base_radius + upper * cos_q) * _RADIAL - upper * sin_q * _UP
+    forearm = points[:, np.newaxis, :] + geometry.effector_radius * _RADIAL - elbow
+    d_elbow = -upper * sin_q * _RADIAL - upper * cos_q * _UP
+    dd_elbow = -upper * cos_q * _RADIAL + upper * sin_q * _UP
+    return forearm, d_elbow, dd_elbow
+
+
+def _ik_diagonal(forearm, d_elbow, geometry, name):
+    """Return ``s_i . b_i`` (N, 3), raising at the first IK singularity."""
+    diagonal = np.einsum('nij,nij->ni', forearm, d_elbow)
+    scale = geometry.upper_arm * geometry.forearm
+    singular = (np.abs(diagonal) < SINGULARITY_TOLERANCE * scale).any(axis=1)
+    if singular.any():
+        index = int(np.argmax(singular))
+        arm = int(np.argmin(np.abs(diagonal[index])))
+        raise _unreachable(
+            f'{name}[{index}]: expected a point away from singularities, got a pose where '
+            f'forearm {arm} is perpendicular to its elbow path (|s.b|/(L1 L2) = '
+            f'{abs(diagonal[index, arm]) / scale:.3g}): the joint rates are unbounded', index)
+    return diagonal
+
+
+def _check_inputs(points, q, extras, names):
+    """Convert points, q and the extra (N, 3) arrays, checking that their shapes agree."""
+    point_array, single = _as_rows(names[0], points)
+    q_array, _ = _as_rows(names[1], q)
+    _same_shape(names[1], q_array, point_array, names[0])
+    converted = []
+    for extra, extra_name in zip(extras, names[2:]):
+        array, _ = _as_rows(extra_name, extra)
+        _same_shape(extra_name, array, point_array, names[0])
+        converted.append(array)
+    return point_array, q_array, converted, single
+
+
+def joint_velocities(points, q, velocities, geometry, *, name='points'):
+    """
+    Joint rates for the given TCP velocities (analytic Jacobian).
+
+    Differentiating ``|s_i|^2 = L2^2`` with ``s_i = C_i - B_i`` gives the standard Delta form
+    ``A p_dot = B q_dot`` with rows ``A_i = s_i^T`` and ``B = diag(s_i . dB_i/dq_i)``.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3) or (3,)
+        TCP positions [m].
+    q : array_like, same shape
+        Joint angles at ``points`` [rad], i.e. ``inverse_kinematics(points)``.
+    velocities : array_like, same shape
+        TCP velocities [m/s].
+    geometry : DeltaGeometry
+        Robot dimensions.
+    name : str
+        Name of ``points`` in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, same shape
+        Joint velocities ``q_dot`` [rad/s].
+
+    Raises
+    ------
+    UnreachableError
+        A pose is at (or within SINGULARITY_TOLERANCE of) an IK singularity.
+
+    """
+    points, q, (velocities,), single = _check_inputs(
+        points, q, (velocities,), (name, 'q', 'velocities'))
+    forearm, d_elbow, _ = _arm_vectors(points, q, geometry)
+    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
+    qdot = np.einsum('nij,nj->ni', forearm, velocities) / diagonal
+    return qdot[0] if single else qdot
+
+
+def joint_accelerations(points, q, velocities, accelerations, qdot, geometry, *,
+                        name='points'):
+    """
+    Joint accelerations for the given TCP accelerations (time derivative of the constraint).
+
+    With ``s_i`` the forearm vector, ``b_i = dB_i/dq_i`` and ``c_i = d^2B_i/dq_i^2``, the
+    derivative of ``s_i . p_dot = (s_i . b_i) q_dot_i`` gives
+    ``q_ddot_i = (s_i . p_ddot + |s_dot_i|^2 - (s_i . c_i) q_dot_i^2) / (s_i . b_i)`` with
+    ``s_dot_i = p_dot - b_i q_dot_i``.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3) or (3,)
+        TCP positions [m].
+    q : array_like, same shape
+        Joint angles at ``points`` [rad].
+    velocities : array_like, same shape
+        TCP velocities [m/s].
+    accelerations : array_like, same shape
+        TCP accelerations [m/s^2].
+    qdot : array_like, same shape
+        Joint velocities [rad/s], i.e. :func:`joint_velocities` of the same samples.
+    geometry : DeltaGeometry
+        Robot dimensions.
+    name : str
+        Name of ``points`` in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, same shape
+        Joint accelerations ``q_ddot`` [rad/s^2].
+
+    Raises
+    ------
+    UnreachableError
+        A pose is at (or within SINGULARITY_TOLERANCE of) an IK singularity.
+
+    """
+    points, q, (velocities, accelerations, qdot), single = _check_inputs(
+        points, q, (velocities, accelerations, qdot),
+        (name, 'q', 'velocities', 'accelerations', 'qdot'))
+    forearm, d_elbow, dd_elbow = _arm_vectors(points, q, geometry)
+    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
+    forearm_rate = velocities[:, np.newaxis, :] - d_elbow * qdot[:, :, np.newaxis]
+    numerator = (np.einsum('nij,nj->ni', forearm, accelerations)
+                 + np.einsum('nij,nij->ni', forearm_rate, forearm_rate)
+                 - np.einsum('nij,nij->ni', forearm, dd_elbow) * qdot * qdot)
+    qddot = numerator / diagonal
+    return qddot[0] if single else qddot
+
+
+def cartesian_velocities(q, qdot, geometry, *, name='q'):
+    """
+    TCP velocities for the given joint rates (forward kinematics, then ``A^-1 B q_dot``).
+
+    Parameters
+    ----------
+    q : array_like, shape (N, 3) or (3,)
+        Joint angles [rad].
+    qdot : array_like, same shape
+        Joint velocities [rad/s].
+    geometry : DeltaGeometry
+        Robot dimensions.
+    name : str
+        Name of ``q`` in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, same shape
+        TCP velocities [m/s].
+
+    Raises
+    ------
+    UnreachableError
+        The pose cannot be assembled, or is at a direct-kinematics singularity
+        (``|det A| / L2^3`` below SINGULARITY_TOLERANCE: the forearms are coplanar).
+
+    """
+    q_array, single = _as_rows(name, q)
+    qdot_array, _ = _as_rows('qdot', qdot)
+    _same_shape('qdot', qdot_array, q_array, name)
+    points = _forward(q_array, geometry, name)
+    forearm, d_elbow, _ = _arm_vectors(points, q_array, geometry)
+    determinant = np.linalg.det(forearm)
+    singular = np.abs(determinant) < SINGULARITY_TOLERANCE * geometry.forearm ** 3
+    if singular.any():
+        index = int(np.argmax(singular))
+        raise _unreachable(
+            f'{name}[{index}]: expected joint angles away from singularities, got '
+            f'{_fmt(q_array[index])} rad where the forearms are coplanar', index)
+    rhs = np.einsum('nij,nij->ni', forearm, d_elbow) * qdot_array
+    velocities = np.linalg.solve(forearm, rhs[:, :, np.newaxis])[:, :, 0]
+    return velocities[0] if single else velocities

@@ -1,0 +1,370 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``ellipath_node``: plans one pick-and-place cycle per pick/place pose pair.
+
+Interface (topic names are relative and remappable):
+
+* subscribes ``pick_pose`` and ``place_pose`` (geometry_msgs/PoseStamped) and, optionally,
+  ``joint_states`` (sensor_msgs/JointState);
+* publishes ``joint_trajectory`` (trajectory_msgs/JointTrajectory, for ros2_control's
+  joint_trajectory_controller), ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, one status
+  per request) and ``~/path_markers`` (visualization_msgs/MarkerArray).
+
+Only the position of a pose is used: the Delta robot has three translational degrees of
+freedom and its effector stays level, so the orientation is ignored. Poses must be in the
+``frame_id`` frame (there is no tf2 lookup) and have finite coordinates.
+
+Pairing (parameter ``pairing``): ``sequence`` pairs a place with the pending pick, and a
+second pick before its place replaces the first; ``stamp`` pairs a place with the pick of
+identical ``header.stamp``, up to ``queue_depth`` picks waiting. A place with no pick is
+rejected. Either way a place consumes its pick, whether the pair is planned or rejected.
+
+The motion starts where the robot is: the forward kinematics of the latest ``joint_states``
+(joints found by name) if it arrived within ``joint_state_timeout``, else the end of the last
+published trajectory, else ``home_position``.
+
+A rejected request publishes no trajectory, logs the reason at WARN and publishes an ERROR
+diagnostics status carrying it; the node keeps serving. Parameters can be changed at run time;
+every change is validated together with all the other current values, and an invalid change
+is refused with its reason while the previous configuration stays in force.
+"""
+
+from collections import OrderedDict
+import sys
+import time
+import traceback
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticStatus
+from ellipath_ros.conversions import diagnostic_array
+from ellipath_ros.conversions import joint_positions_by_name
+from ellipath_ros.conversions import joint_trajectory_data
+from ellipath_ros.conversions import joint_trajectory_message
+from ellipath_ros.conversions import path_markers
+from ellipath_ros.conversions import pose_position
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.errors import require_point
+from ellipath_ros.core.joint_trajectory import validate_jtc
+from ellipath_ros.core.kinematics import check_reachable
+from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.parameters import build_settings
+from ellipath_ros.parameters import PARAMETER_NAMES
+from ellipath_ros.parameters import PARAMETER_TABLE
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import SetParametersResult
+import rclpy
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.logging import get_logger
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+from visualization_msgs.msg import MarkerArray
+
+NODE_NAME = 'ellipath_node'
+
+# Threads of the executor in main(): one per callback group (planning, joint states, and the
+# default group that serves the parameter services), so neither joint states nor parameter
+# requests wait behind a plan, and a plan waits for nothing but the GIL.
+EXECUTOR_THREADS = 3
+
+
+class UnpairedPlaceError(EllipathError):
+    """A place pose arrived with no pick pose to pair it with."""
+
+    kind = 'unpaired'
+
+
+class PosePairing:
+    """
+    Pick positions waiting for their place, at most ``depth`` of them.
+
+    Not thread-safe: the node uses it from one mutually exclusive callback group only.
+    Pending picks are dropped when the pairing mode changes.
+    """
+
+    def __init__(self):
+        self._pending = OrderedDict()
+        self._mode = 'sequence'
+
+    def __len__(self):
+        """Return the number of pending picks."""
+        return len(self._pending)
+
+    def _key(self, stamp, mode):
+        """Return the key pairing a pick and a place in ``mode``."""
+        if mode != self._mode:
+            self._pending.clear()
+            self._mode = mode
+        return None if mode == 'sequence' else (stamp.sec, stamp.nanosec)
+
+    def add_pick(self, stamp, position, mode, depth):
+        """Store a pick; return a warning if it displaced another pick, else None."""
+        key = self._key(stamp, mode)
+        warning = None
+        if key in self._pending:
+            del self._pending[key]
+            warning = ('pick_pose replaced the pending pick, which had no place_pose yet'
+                       if key is None else
+                       f'pick_pose replaced the pending pick of the same stamp {key}')
+        elif len(self._pending) >= depth:
+            dropped, _ = self._pending.popitem(last=False)
+            warning = (f'pick queue full ({depth} waiting): dropped the oldest pick '
+                       f'(stamp {dropped})')
+        self._pending[key] = position
+        return warning
+
+    def take_pick(self, stamp, mode):
+        """Remove and return the pick position paired with a place, or raise."""
+        key = self._key(stamp, mode)
+        try:
+            return self._pending.pop(key)
+        except KeyError:
+            wanted = 'pending' if key is None else f'with stamp {key}'
+            raise UnpairedPlaceError(
+                f'place_pose: expected a pick_pose {wanted} to pair with (pairing {mode}), '
+                'got none') from None
+
+
+class EllipathNode(Node):
+    """
+    ROS 2 node that turns pick/place pose pairs into joint trajectories.
+
+    Parameters
+    ----------
+    **node_options
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``,
+        ``cli_args``, ...).
+
+    Raises
+    ------
+    ellipath_ros.core.errors.EllipathError
+        The start-up parameters are invalid as a whole.
+    rclpy.exceptions.ParameterException
+        A start-up parameter has the wrong type or is out of its range.
+
+    """
+
+    def __init__(self, **node_options):
+        super().__init__(NODE_NAME, **node_options)
+        declared = self.declare_parameters(
+            '', [(spec.name, spec.default, spec.descriptor()) for spec in PARAMETER_TABLE])
+        self._settings = build_settings({parameter.name: parameter.value
+                                         for parameter in declared})
+        # Validated by the on-set callback, committed by the post-set callback.
+        self._accepted_settings = None
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._commit_parameters)
+
+        self._pairing = PosePairing()
+        self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
+        self._last_end_position = None
+        self._status_name = f'{self.get_name()}: plan'
+
+        depth = self._settings.queue_depth
+        # Pick and place share one mutually exclusive group: their order is kept, the pairing
+        # state needs no lock and the plan runs in the place callback. Joint states have a
+        # group of their own so they are stored while a plan runs.
+        planning_group = MutuallyExclusiveCallbackGroup()
+        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, depth,
+                                 callback_group=planning_group)
+        self.create_subscription(PoseStamped, 'place_pose', self._on_place, depth,
+                                 callback_group=planning_group)
+        self.create_subscription(JointState, 'joint_states', self._on_joint_state,
+                                 qos_profile_sensor_data,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self._trajectory_publisher = self.create_publisher(
+            JointTrajectory, 'joint_trajectory', depth)
+        self._diagnostics_publisher = self.create_publisher(
+            DiagnosticArray, '/diagnostics', depth)
+        self._marker_publisher = self.create_publisher(MarkerArray, '~/path_markers', depth)
+
+        planner = self._settings.planner
+        self.get_logger().info(
+            f'ready: poses in frame {self._settings.frame_id!r}, pairing '
+            f'{self._settings.pairing}, arc_policy {planner.arc_policy}, profile '
+            f'{planner.profile}, joints {list(planner.joint_names)}. Pose orientations are '
+            'ignored (3-DOF Delta robot: only the position is used).')
+
+    @property
+    def pending_pick_count(self):
+        """Return the number of picks waiting for their place."""
+        return len(self._pairing)
+
+    # --- parameters -----------------------------------------------------------------------
+
+    def _validate_parameters(self, parameters):
+        """Accept ``parameters`` only if the merged full set builds a valid configuration."""
+        values = {name: self.get_parameter(name).value for name in PARAMETER_NAMES}
+        values.update((parameter.name, parameter.value) for parameter in parameters)
+        try:
+            self._accepted_settings = build_settings(values)
+        except EllipathError as error:
+            self._accepted_settings = None
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _commit_parameters(self, parameters):
+        """Switch to the settings validated for ``parameters``."""
+        self._settings = self._accepted_settings
+        changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
+        self.get_logger().info(f'parameters changed: {changes}')
+
+    # --- subscriptions --------------------------------------------------------------------
+
+    def _on_joint_state(self, message):
+        """Remember the latest joint state and when it arrived."""
+        self._latest_joint_state = (message, time.monotonic())
+
+    def _on_pick(self, message):
+        """Store a valid pick pose until its place arrives."""
+        self._serve('pick_pose', self._handle_pick, message)
+
+    def _on_place(self, message):
+        """Plan and publish the cycle of a place pose and its pick."""
+        self._serve('place_pose', self._handle_place, message)
+
+    def _serve(self, topic, handler, message):
+        """Run ``handler`` and turn any failure into a rejection; the node keeps serving."""
+        received = time.perf_counter()
+        settings = self._settings  # one consistent snapshot for the whole request
+        try:
+            handler(message, settings, received)
+        except EllipathError as error:
+            self.get_logger().warn(f'{topic} rejected: {error}')
+            self._publish_status(DiagnosticStatus.ERROR, str(error),
+                                 {'topic': topic, 'kind': error.kind})
+        except Exception as error:  # a bug in one request must not stop the node
+            self.get_logger().error(
+                f'{topic}: unexpected {type(error).__name__}: {error}\n'
+                f'{traceback.format_exc()}')
+            self._publish_status(DiagnosticStatus.ERROR,
+                                 f'internal error: {type(error).__name__}: {error}',
+                                 {'topic': topic, 'kind': 'internal'})
+
+    def _checked_position(self, topic, message, settings):
+        """Return the position of a pose in the base frame, or raise naming the problem."""
+        frame_id = message.header.frame_id
+        if frame_id != settings.frame_id:
+            raise InvalidInputError(
+                f'{topic}.header.frame_id: expected {settings.frame_id!r} (no tf2: poses must '
+                f'be in the robot base frame), got {frame_id!r}')
+        return require_point(f'{topic}.pose.position', pose_position(message))
+
+    def _handle_pick(self, message, settings, received):
+        """Validate a pick pose and queue it."""
+        position = self._checked_position('pick_pose', message, settings)
+        check_reachable(position, settings.planner.geometry, name='pick_pose.pose.position')
+        warning = self._pairing.add_pick(message.header.stamp, position, settings.pairing,
+                                         settings.queue_depth)
+        if warning is not None:
+            self.get_logger().warn(warning)
+            self._publish_status(DiagnosticStatus.WARN, warning,
+                                 {'topic': 'pick_pose', 'pending_picks': len(self._pairing)})
+
+    def _handle_place(self, message, settings, received):
+        """Pair a place pose with its pick, plan, check and publish the trajectory."""
+        pick = self._pairing.take_pick(message.header.stamp, settings.pairing)
+        place = self._checked_position('place_pose', message, settings)
+        start, start_source = self._start_position(settings)
+        planning = time.perf_counter()
+        plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
+                          place_dwell=settings.place_dwell)
+        plan_latency = time.perf_counter() - planning
+        stamp = self.get_clock().now().to_msg() if settings.header_stamp == 'now' else Time()
+        trajectory = joint_trajectory_message(plan.joint_trajectory, settings.frame_id, stamp)
+        # Check what is actually sent, after the conversion to whole nanoseconds.
+        validate_jtc(joint_trajectory_data(trajectory),
+                     expect_names=settings.planner.joint_names)
+        self._trajectory_publisher.publish(trajectory)
+        latency = time.perf_counter() - received
+        self._last_end_position = plan.end_position
+
+        values = dict(plan.metrics)
+        values.update(plan_latency=plan_latency, receive_to_publish_latency=latency,
+                      start_source=start_source, points=len(trajectory.points))
+        self._publish_status(DiagnosticStatus.OK, 'planned', values)
+        if self._marker_publisher.get_subscription_count() > 0:
+            self._marker_publisher.publish(path_markers(plan, settings.frame_id, stamp))
+        self.get_logger().debug(
+            f'planned {len(trajectory.points)} points, receive to publish {latency * 1e3:.2f} ms')
+
+    def _start_position(self, settings):
+        """Return the TCP start of the next cycle and where it comes from."""
+        latest = self._latest_joint_state
+        if latest is not None:
+            joint_state, arrival = latest
+            if time.monotonic() - arrival <= settings.joint_state_timeout:
+                joints = joint_positions_by_name(joint_state, settings.planner.joint_names)
+                if joints is not None:
+                    position = forward_kinematics(joints, settings.planner.geometry,
+                                                  name='joint_states.position')
+                    return position, 'joint_states'
+                self.get_logger().warn(
+                    f'joint_states lacks a finite position of {list(settings.planner.joint_names)}'
+                    ': not used as the start', throttle_duration_sec=10.0)
+        if self._last_end_position is not None:
+            return self._last_end_position, 'last_trajectory'
+        return settings.home_position, 'home_position'
+
+    def _publish_status(self, level, message, values):
+        """Publish one diagnostics status about the current request."""
+        self._diagnostics_publisher.publish(diagnostic_array(
+            self.get_clock().now().to_msg(), self._status_name,
+            self.get_fully_qualified_name(), level, message, values))
+
+
+def main(args=None):
+    """
+    Run ``ellipath_node`` until SIGINT or SIGTERM; return the process exit code.
+
+    Parameters
+    ----------
+    args : list of str, optional
+        Command-line arguments (``--ros-args ...``); ``sys.argv`` if None.
+
+    """
+    rclpy.init(args=args)
+    # Multi-threaded so that joint states and parameter services are served while a plan runs
+    # (see EXECUTOR_THREADS); plans themselves stay serialised by their callback group.
+    executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+    node = None
+    exit_code = 0
+    try:
+        node = EllipathNode()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (EllipathError, ParameterException) as error:
+        get_logger(NODE_NAME).fatal(f'invalid parameters: {error}')
+        exit_code = 1
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return exit_code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,305 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The node's parameters: one declarative table, and the validation of a complete set.
+
+Every parameter of ``ellipath_node`` is one row of :data:`PARAMETER_TABLE`: name, ROS type,
+default, unit, description, range and whether it is read-only. The rows of the planning core
+take their defaults from :data:`ellipath_ros.core.planner.CORE_DEFAULTS`, so the defaults live
+in one place; ``config/ellipath.yaml`` repeats them for users and a test keeps the two equal.
+
+:func:`build_settings` turns a complete set of values into :class:`NodeSettings`; the node
+calls it at start-up and on every run-time change, with the current values merged with the
+requested ones, so a change is accepted or rejected as a whole.
+"""
+
+from dataclasses import dataclass
+import math
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.errors import require_point
+from ellipath_ros.core.errors import require_range
+from ellipath_ros.core.planner import CORE_DEFAULTS
+from ellipath_ros.core.planner import PlannerConfig
+from rcl_interfaces.msg import FloatingPointRange
+from rcl_interfaces.msg import IntegerRange
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.parameter import Parameter
+
+_DOUBLE = Parameter.Type.DOUBLE
+_INTEGER = Parameter.Type.INTEGER
+_STRING = Parameter.Type.STRING
+_DOUBLE_ARRAY = Parameter.Type.DOUBLE_ARRAY
+_STRING_ARRAY = Parameter.Type.STRING_ARRAY
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """
+    One parameter of the node.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name (flat, no namespace).
+    type_ : rclpy.parameter.Parameter.Type
+        ROS parameter type; the default is converted to it.
+    default : object
+        Default value.
+    unit : str
+        SI unit, or ``''`` for unitless values.
+    description : str
+        What the parameter does, for ``ros2 param describe``.
+    low, high : float or int or None
+        Closed range of a numeric parameter (enforced by rclpy through the descriptor).
+    choices : tuple of str
+        Allowed values of a string parameter.
+    read_only : bool
+        True for parameters that cannot change after start-up.
+    core : bool
+        True for parameters of the planning core (validated by ``PlannerConfig.from_flat``).
+
+    """
+
+    name: str
+    type_: Parameter.Type
+    default: object
+    unit: str
+    description: str
+    low: object = None
+    high: object = None
+    choices: tuple = ()
+    read_only: bool = False
+    core: bool = False
+
+    def descriptor(self):
+        """Return the rcl ParameterDescriptor of this parameter."""
+        descriptor = ParameterDescriptor(
+            name=self.name, type=self.type_.value, read_only=self.read_only,
+            description=f'{self.description} [{self.unit}]' if self.unit else self.description)
+        if self.choices:
+            descriptor.additional_constraints = 'one of: ' + ', '.join(self.choices)
+        if self.type_ == _DOUBLE and self.low is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(self.low), to_value=float(self.high), step=0.0)]
+        elif self.type_ == _INTEGER and self.low is not None:
+            descriptor.integer_range = [IntegerRange(
+                from_value=int(self.low), to_value=int(self.high), step=0)]
+        return descriptor
+
+
+def _as_type(type_, value):
+    """Convert ``value`` to the Python value rclpy expects for ``type_``."""
+    if type_ == _DOUBLE:
+        return float(value)
+    if type_ == _INTEGER:
+        return int(value)
+    if type_ == _STRING:
+        return str(value)
+    if type_ == _DOUBLE_ARRAY:
+        return [float(item) for item in value]
+    if type_ == _STRING_ARRAY:
+        return [str(item) for item in value]
+    raise TypeError(f'unsupported parameter type {type_}')
+
+
+def _node(name, type_, default, unit, description, **options):
+    """Build the row of a parameter owned by the ROS node."""
+    return ParameterSpec(name, type_, _as_type(type_, default), unit, description, **options)
+
+
+def _core(name, type_, unit, description, **options):
+    """Build the row of a core parameter; its default comes from CORE_DEFAULTS."""
+    return ParameterSpec(name, type_, _as_type(type_, CORE_DEFAULTS[name]), unit, description,
+                         core=True, **options)
+
+
+PARAMETER_TABLE = (
+    # ROS interface.
+    _node('frame_id', _STRING, 'base_link', '',
+          'Robot base frame; pick and place poses in any other frame are rejected (no tf2)',
+          read_only=True),
+    _core('joint_names', _STRING_ARRAY, '',
+          'Actuator joint names of arms 0, 1, 2, in trajectory order', read_only=True),
+    _node('pairing', _STRING, 'sequence', '',
+          'How a place pose finds its pick: sequence = the pending pick, '
+          'stamp = the pick with the identical header.stamp', choices=('sequence', 'stamp')),
+    _node('queue_depth', _INTEGER, 10, '',
+          'Depth of the topic queues and most picks waiting for their place', low=1,
+          high=1000, read_only=True),
+    _node('header_stamp', _STRING, 'zero', '',
+          'Trajectory header.stamp: zero = the controller starts it on receipt, now = the '
+          'node clock at publication', choices=('zero', 'now')),
+    _node('pick_dwell', _DOUBLE, 0.0, 's', 'Pause at the pick point', low=0.0, high=60.0),
+    _node('place_dwell', _DOUBLE, 0.0, 's', 'Pause at the place point', low=0.0, high=60.0),
+    _node('home_position', _DOUBLE_ARRAY, [0.0, 0.0, -0.8], 'm',
+          'TCP start position (x, y, z) when neither a fresh joint state nor a previous '
+          'trajectory is known'),
+    _node('joint_state_timeout', _DOUBLE, 0.5, 's',
+          'Joint states older than this (by arrival time) are ignored as the start; 0 never '
+          'uses them', low=0.0, high=60.0),
+    # Robot geometry and joint position limits.
+    _core('base_radius', _DOUBLE, 'm', 'Base centre to actuator axis (R)', low=0.0, high=5.0),
+    _core('effector_radius', _DOUBLE, 'm', 'Effector centre (TCP) to forearm joint (r)',
+          low=0.0, high=5.0),
+    _core('upper_arm', _DOUBLE, 'm', 'Upper arm length (L1)', low=0.0, high=5.0),
+    _core('forearm', _DOUBLE, 'm', 'Forearm (parallelogram) length (L2)', low=0.0, high=10.0),
+    _core('joint_min', _DOUBLE, 'rad', 'Lowest joint angle (q > 0 points the arm down)',
+          low=-math.pi, high=math.pi),
+    _core('joint_max', _DOUBLE, 'rad', 'Highest joint angle', low=-math.pi, high=math.pi),
+    # Path.
+    _core('pick_clearance', _DOUBLE, 'm', 'Vertical rise above the pick point (c1)',
+          low=0.0, high=1.0),
+    _core('place_clearance', _DOUBLE, 'm', 'Vertical descent onto the place point (c2)',
+          low=0.0, high=1.0),
+    _core('arc_policy', _STRING, '',
+          "Choice of the ellipse: paper = the paper's rule, apex_clearance = apex this high "
+          'above the upper tangent point, min_radius = smallest radius of curvature this large',
+          choices=('paper', 'apex_clearance', 'min_radius')),
+    _core('apex_clearance', _DOUBLE, 'm', 'Apex height above the upper tangent point '
+          '(arc_policy apex_clearance)', low=0.0, high=1.0),
+    _core('min_radius', _DOUBLE, 'm', 'Smallest radius of curvature of the arc '
+          '(arc_policy min_radius)', low=0.0, high=1.0),
+    # Timing.
+    _core('profile', _STRING, '',
+          'Motion profile on the arc: time_optimal = jerk-limited time-optimal, curvature = '
+          "the paper's radius-of-curvature method", choices=('time_optimal', 'curvature')),
+    _core('curvature_r', _DOUBLE, 'rad/m',
+          "Gain r of the paper's profile: parameter step = r * radius of curvature "
+          '(profile curvature)', low=0.0, high=100.0),
+    _core('max_speed', _DOUBLE, 'm/s', 'TCP speed limit', low=0.0, high=100.0),
+    _core('max_accel', _DOUBLE, 'm/s^2', 'TCP acceleration norm limit', low=0.0, high=1.0e4),
+    _core('max_jerk', _DOUBLE, 'm/s^3', 'TCP jerk limit', low=0.0, high=1.0e7),
+    _core('max_accel_jump', _DOUBLE, 'm/s^2',
+          'Largest normal acceleration jump allowed at the line-to-arc joins T1 and T2',
+          low=0.0, high=1.0e4),
+    _core('max_joint_velocity', _DOUBLE, 'rad/s', 'Joint speed limit', low=0.0, high=1000.0),
+    _core('max_joint_accel', _DOUBLE, 'rad/s^2', 'Joint acceleration limit',
+          low=0.0, high=1.0e5),
+    # Trajectory output.
+    _core('knot_tolerance', _DOUBLE, 'm',
+          "Largest TCP deviation of the controller's interpolation between knots (knots mode)",
+          low=0.0, high=0.01),
+    _core('output_mode', _STRING, '',
+          'Trajectory points: knots = as few as knot_tolerance allows, samples = one every '
+          'sample_period', choices=('knots', 'samples')),
+    _core('sample_period', _DOUBLE, 's', 'Time between points (output_mode samples)',
+          low=0.0, high=1.0),
+)
+
+PARAMETER_NAMES = tuple(spec.name for spec in PARAMETER_TABLE)
+
+
+def parameter_defaults():
+    """Return the default of every parameter, by name."""
+    return {spec.name: spec.default for spec in PARAMETER_TABLE}
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """
+    A validated, complete parameter set of the node.
+
+    Parameters
+    ----------
+    planner : PlannerConfig
+        Configuration of the planning core.
+    frame_id : str
+        Base frame of every pose and of the published trajectory.
+    pairing : str
+        ``'sequence'`` or ``'stamp'``.
+    queue_depth : int
+        Topic queue depth and most pending picks.
+    header_stamp : str
+        ``'zero'`` or ``'now'``.
+    pick_dwell, place_dwell : float
+        Pauses at the pick and place points [s].
+    home_position : tuple of float
+        TCP start used when nothing better is known [m].
+    joint_state_timeout : float
+        Age above which a joint state is not used as the start [s].
+
+    """
+
+    planner: PlannerConfig
+    frame_id: str
+    pairing: str
+    queue_depth: int
+    header_stamp: str
+    pick_dwell: float
+    place_dwell: float
+    home_position: tuple
+    joint_state_timeout: float
+
+
+def _check_node_value(spec, value):
+    """Return the node-owned ``value`` checked against its row, or raise InvalidInputError."""
+    if spec.choices:
+        if value not in spec.choices:
+            raise InvalidInputError(
+                f'{spec.name}: expected one of {", ".join(spec.choices)}, got {value!r}')
+        return value
+    if spec.low is None:
+        return value
+    number = require_range(spec.name, value, spec.low, spec.high, unit=spec.unit)
+    if spec.type_ == _INTEGER:
+        if not number.is_integer():
+            raise InvalidInputError(f'{spec.name}: expected an integer, got {value!r}')
+        return int(number)
+    return number
+
+
+def build_settings(values):
+    """
+    Validate a complete parameter set and return the settings it describes.
+
+    Parameters
+    ----------
+    values : Mapping[str, object]
+        A value for every name of :data:`PARAMETER_TABLE`; other keys are ignored.
+
+    Returns
+    -------
+    NodeSettings
+        The validated settings, with the core configuration built by
+        ``PlannerConfig.from_flat``.
+
+    Raises
+    ------
+    InvalidInputError
+        A node parameter is invalid; the message names it.
+    ellipath_ros.core.errors.EllipathError
+        The core rejects its parameters; the message names the offending one.
+
+    """
+    missing = [name for name in PARAMETER_NAMES if name not in values]
+    if missing:
+        raise InvalidInputError(f'parameters: expected a value for every parameter, '
+                                f'missing {", ".join(missing)}')
+    node_values = {}
+    core_values = {}
+    for spec in PARAMETER_TABLE:
+        value = values[spec.name]
+        if spec.type_ in (_DOUBLE_ARRAY, _STRING_ARRAY):
+            value = list(value)  # rclpy may hand arrays over as array.array
+        if spec.core:
+            core_values[spec.name] = value
+        else:
+            node_values[spec.name] = _check_node_value(spec, value)
+    if not node_values['frame_id']:
+        raise InvalidInputError("frame_id: expected a frame name, got ''")
+    home_position = require_point('home_position', node_values.pop('home_position'))
+    return NodeSettings(planner=PlannerConfig.from_flat(core_values),
+                        home_position=tuple(home_position.tolist()), **node_values)

@@ -1,0 +1,152 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The node's parameter table, its validation and the parameter files (no ROS graph)."""
+
+import math
+from pathlib import Path
+
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.planner import CORE_DEFAULTS
+from ellipath_ros.parameters import build_settings
+from ellipath_ros.parameters import parameter_defaults
+from ellipath_ros.parameters import PARAMETER_NAMES
+from ellipath_ros.parameters import PARAMETER_TABLE
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.parameter import parameter_dict_from_yaml_file
+import yaml
+
+CONFIG = Path(__file__).resolve().parents[1] / 'config'
+NODE_KEYS = {'frame_id', 'pairing', 'pick_dwell', 'place_dwell', 'home_position',
+             'joint_state_timeout', 'header_stamp', 'queue_depth'}
+
+
+def _yaml_parameters(name):
+    """Return the ros__parameters of the ``/**`` section of a config file."""
+    with open(CONFIG / name) as stream:
+        document = yaml.safe_load(stream)
+    assert list(document) == ['/**']
+    return document['/**']['ros__parameters']
+
+
+def test_table_holds_every_core_and_node_parameter_once():
+    assert len(PARAMETER_NAMES) == len(set(PARAMETER_NAMES))
+    core = {spec.name for spec in PARAMETER_TABLE if spec.core}
+    assert core == set(CORE_DEFAULTS)
+    assert set(PARAMETER_NAMES) - core == NODE_KEYS
+
+
+def test_core_defaults_are_taken_from_the_core():
+    for spec in PARAMETER_TABLE:
+        if spec.core:
+            expected = CORE_DEFAULTS[spec.name]
+            if isinstance(expected, (list, tuple)):
+                expected = list(expected)
+            assert spec.default == expected, spec.name
+
+
+@pytest.mark.parametrize('spec', PARAMETER_TABLE, ids=lambda spec: spec.name)
+def test_every_row_is_complete_and_consistent(spec):
+    assert Parameter.Type.from_parameter_value(spec.default) == spec.type_
+    descriptor = spec.descriptor()
+    assert descriptor.name == spec.name
+    assert descriptor.type == spec.type_.value
+    assert len(descriptor.description) > 10
+    if spec.unit:
+        assert descriptor.description.endswith(f'[{spec.unit}]')
+    if spec.type_ == Parameter.Type.DOUBLE:
+        assert spec.unit, 'every float parameter has a unit'
+        (interval,) = descriptor.floating_point_range
+        assert interval.from_value <= spec.default <= interval.to_value
+    if spec.type_ == Parameter.Type.INTEGER:
+        (interval,) = descriptor.integer_range
+        assert interval.from_value <= spec.default <= interval.to_value
+    if spec.choices:
+        assert spec.default in spec.choices
+        assert descriptor.additional_constraints == 'one of: ' + ', '.join(spec.choices)
+
+
+def test_read_only_parameters():
+    read_only = {spec.name for spec in PARAMETER_TABLE if spec.descriptor().read_only}
+    assert read_only == {'frame_id', 'joint_names', 'queue_depth'}
+
+
+def test_defaults_of_the_issue():
+    defaults = parameter_defaults()
+    assert defaults['frame_id'] == 'base_link'
+    assert defaults['pairing'] == 'sequence'
+    assert defaults['header_stamp'] == 'zero'
+    assert defaults['home_position'] == [0.0, 0.0, -0.8]
+    assert defaults['joint_state_timeout'] == 0.5
+    assert defaults['queue_depth'] == 10
+    assert defaults['pick_dwell'] == defaults['place_dwell'] == 0.0
+
+
+def test_ellipath_yaml_lists_every_parameter_at_its_default():
+    values = _yaml_parameters('ellipath.yaml')
+    defaults = parameter_defaults()
+    assert list(values) == list(PARAMETER_NAMES), 'same parameters, in table order'
+    for spec in PARAMETER_TABLE:
+        value = values[spec.name]
+        assert Parameter.Type.from_parameter_value(value) == spec.type_, spec.name
+        assert value == defaults[spec.name], spec.name
+
+
+def test_parameter_files_parse_with_rclpy():
+    for name in ('ellipath.yaml', 'paper.yaml'):
+        parsed = parameter_dict_from_yaml_file(str(CONFIG / name), use_wildcard=True)
+        assert parsed and set(parsed) <= set(PARAMETER_NAMES)
+
+
+def test_paper_yaml_selects_the_papers_method():
+    values = _yaml_parameters('paper.yaml')
+    assert values == {'arc_policy': 'paper', 'profile': 'curvature', 'curvature_r': 0.77}
+    settings = build_settings({**parameter_defaults(), **values})
+    assert settings.planner.profile == 'curvature'
+
+
+def test_defaults_build_valid_settings():
+    settings = build_settings(parameter_defaults())
+    assert settings.frame_id == 'base_link'
+    assert settings.home_position == (0.0, 0.0, -0.8)
+    assert settings.queue_depth == 10 and isinstance(settings.queue_depth, int)
+    assert tuple(settings.planner.joint_names) == ('joint_1', 'joint_2', 'joint_3')
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('pairing', 'random', 'pairing'),
+    ('header_stamp', 'later', 'header_stamp'),
+    ('home_position', [0.0, 0.0], 'home_position'),
+    ('home_position', [0.0, math.nan, -0.8], 'home_position'),
+    ('pick_dwell', -1.0, 'pick_dwell'),
+    ('place_dwell', math.inf, 'place_dwell'),
+    ('joint_state_timeout', -0.1, 'joint_state_timeout'),
+    ('queue_depth', 0, 'queue_depth'),
+    ('frame_id', '', 'frame_id'),
+    ('arc_policy', 'x', 'arc_policy'),
+    ('profile', 'fast', 'profile'),
+    ('max_speed', -1.0, 'max_speed'),
+    ('joint_min', 2.0, 'joint'),  # valid alone, but above joint_max = 1.95
+])
+def test_an_invalid_set_is_rejected_naming_the_parameter(name, value, reason):
+    with pytest.raises(EllipathError, match=reason):
+        build_settings({**parameter_defaults(), name: value})
+
+
+def test_a_missing_parameter_is_named():
+    values = parameter_defaults()
+    del values['max_jerk']
+    with pytest.raises(EllipathError, match='max_jerk'):
+        build_settings(values)
