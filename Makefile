@@ -1,0 +1,40 @@
+# Two commands for a fresh machine: `make demo` and `make test` (each creates .venv if missing).
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+# DDS stays on this host unless you say otherwise.
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export AMENT_PREFIX_PATH ?= $(abspath $(VENV))
+
+.PHONY: demo test lint bench figures colcon clean
+
+SOURCES := $(shell find ellipath_ros config resource -type f -not -name '*.pyc')
+
+$(BIN)/ellipath: setup.py setup.cfg requirements-dev.txt package.xml $(SOURCES)
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -r requirements-dev.txt
+	$(BIN)/python -m pip install --quiet '.[plot,bench,test]'
+	touch $@
+
+demo: $(BIN)/ellipath
+	$(BIN)/ellipath plan --pick 0 0 -0.8 --place 0.3 0 -0.75
+	$(BIN)/ellipath demo
+	$(BIN)/ellipath plot --pick 0 0 -0.8 --place 0.3 0 -0.75 --out figures
+
+test: $(BIN)/ellipath
+	$(BIN)/python -m pytest -q
+
+bench: $(BIN)/ellipath
+	$(BIN)/ellipath bench
+
+colcon: $(BIN)/ellipath
+	rm -rf build/colcon
+	. $(BIN)/activate && colcon --log-base build/colcon/log build --base-paths . \
+	    --build-base build/colcon/build --install-base build/colcon/install
+	test -x build/colcon/install/ellipath_ros/lib/ellipath_ros/ellipath_node
+	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/ellipath.yaml
+	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/paper.yaml
+
+clean:
+	rm -rf $(VENV) build figures *.egg-info .pytest_cache

@@ -1,0 +1,213 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The ``ellipath`` command: plan, bench, demo and plot, with the node's defaults.
+
+``ellipath plan`` calls the core directly (no ROS needed); ``demo`` starts
+the ROS 2 node; ``plot`` needs the ``plot`` extra and ``bench`` the ``bench``
+extra. Exit status 2 means a rejected input (the reason on stderr, or a JSON
+``error`` object on stdout with ``--json``).
+"""
+
+import argparse
+import json
+import math
+import sys
+
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.geometry import ARC_POLICIES
+from ellipath_ros.core.planner import CORE_DEFAULTS, plan_transfer, PlannerConfig
+from ellipath_ros.core.timing import PROFILES
+
+# CLI option -> flat parameter name (the node's); defaults come from CORE_DEFAULTS.
+_PLAN_OPTIONS = (
+    ('--pick-clearance', 'pick_clearance', float, 'vertical segment at the pick [m]'),
+    ('--place-clearance', 'place_clearance', float, 'vertical segment at the place [m]'),
+    ('--arc', 'arc_policy', str, 'how the ellipse is chosen: ' + ', '.join(ARC_POLICIES)),
+    ('--apex-clearance', 'apex_clearance', float,
+     'apex height above the higher tangent point, arc apex_clearance [m]'),
+    ('--min-radius', 'min_radius', float, 'smallest radius of curvature, arc min_radius [m]'),
+    ('--profile', 'profile', str, 'motion profile: ' + ', '.join(PROFILES)),
+    ('--r', 'curvature_r', float, "the paper's coefficient r, curvature profile [rad/m]"),
+    ('--max-speed', 'max_speed', float, 'TCP speed limit [m/s]'),
+    ('--max-accel', 'max_accel', float, 'TCP acceleration limit (vector norm) [m/s^2]'),
+    ('--max-jerk', 'max_jerk', float, 'TCP jerk limit (vector norm) [m/s^3]'),
+    ('--max-accel-jump', 'max_accel_jump', float,
+     'allowed acceleration step at T1/T2 (line-to-ellipse join) [m/s^2]'),
+    ('--max-joint-velocity', 'max_joint_velocity', float, 'joint speed limit [rad/s]'),
+    ('--max-joint-accel', 'max_joint_accel', float, 'joint acceleration limit [rad/s^2]'),
+    ('--knot-tolerance', 'knot_tolerance', float,
+     'largest TCP deviation of the controller interpolation between knots [m]'),
+    ('--output-mode', 'output_mode', str, 'joint trajectory as knots or samples'),
+    ('--sample-period', 'sample_period', float, 'period of samples output [s]'),
+)
+
+
+def _add_plan_arguments(parser):
+    parser.add_argument('--pick', nargs=3, type=float, required=True, metavar=('X', 'Y', 'Z'),
+                        help='pick point P1 in the base frame [m]')
+    parser.add_argument('--place', nargs=3, type=float, required=True, metavar=('X', 'Y', 'Z'),
+                        help='place point P2 in the base frame [m]')
+    for option, name, kind, text in _PLAN_OPTIONS:
+        parser.add_argument(option, dest=name, type=kind, default=CORE_DEFAULTS[name],
+                            help=f'{text} (default: %(default)s)')
+    parser.add_argument('--json', action='store_true', help='print one JSON object')
+
+
+def _config_from(args):
+    """Build the planner config from the parsed options (validated by the core)."""
+    return PlannerConfig.from_flat({name: getattr(args, name) for _, name, _, _ in _PLAN_OPTIONS})
+
+
+def plan_result(args):
+    """Plan one transfer and return the JSON-ready result dict."""
+    config = _config_from(args)
+    leg = plan_transfer(args.pick, args.place, config)
+    result = leg.summary()
+    trajectory = leg.joint_trajectory
+    result.update({
+        'pick': list(args.pick),
+        'place': list(args.place),
+        'joint_names': list(trajectory.joint_names),
+        'joint_trajectory': {
+            'time_from_start': trajectory.time_from_start.tolist(),
+            'positions': trajectory.positions.tolist(),
+            'velocities': trajectory.velocities.tolist(),
+            'accelerations': trajectory.accelerations.tolist(),
+        },
+    })
+    return result
+
+
+def _format_human(result):
+    """Return a short human-readable summary of a plan."""
+    def number(key, scale=1.0, digits=5):
+        value = result.get(key)
+        return 'n/a' if value is None else f'{value * scale:.{digits}g}'
+    lines = [
+        f"path: {number('path_length')} m (arc {number('arc_length')} m exact, "
+        f"{number('arc_length_approx')} m by eq. 27)",
+        f"arc: l {number('l')} m, h {number('h')} m, phi {number('phi_deg')} deg, "
+        f"a {number('a')} m, b {number('b')} m",
+        f"theta_T1 {number('theta_T1_deg')} deg, theta_T2 {number('theta_T2_deg')} deg, "
+        f"apex height {number('apex_height')} m",
+        f"motion ({result['profile']}): {number('duration', 1e3)} ms, segments "
+        + ' / '.join(f'{value * 1e3:.4g}' for value in result['segment_durations']) + ' ms',
+        f"peaks: {number('peak_speed')} m/s, {number('peak_accel')} m/s^2, "
+        f"{number('peak_jerk')} m/s^3; joints {number('joint_peak_velocity')} rad/s, "
+        f"{number('joint_peak_accel')} rad/s^2",
+        f"joint trajectory: {result['n_points']} points, max interpolation error "
+        f"{number('max_interpolation_error', 1e3)} mm",
+    ]
+    return '\n'.join(lines) + '\n'
+
+
+def _run_plan(args):
+    try:
+        result = plan_result(args)
+    except EllipathError as error:
+        if args.json:
+            sys.stdout.write(json.dumps(
+                {'error': {'kind': error.kind, 'message': str(error)}}) + '\n')
+        else:
+            sys.stderr.write(f'ellipath plan: {error.kind}: {error}\n')
+        return 2
+    if args.json:
+        sys.stdout.write(json.dumps(_finite(result), allow_nan=False) + '\n')
+    else:
+        sys.stdout.write(_format_human(result))
+    return 0
+
+
+def _finite(value):
+    """Replace non-finite floats (none are expected) by None so the JSON stays valid."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    return value
+
+
+def _run_bench(args):
+    from ellipath_ros.bench import format_table, run_benchmark
+    try:
+        rows = run_benchmark(repeats=args.repeats)
+    except ImportError as error:
+        sys.stderr.write(f'ellipath bench: {error}\n')
+        return 2
+    sys.stdout.write(format_table(rows) + '\n')
+    return 0
+
+
+def _run_plot(args):
+    try:
+        from ellipath_ros.plotting import write_figures
+        config = _config_from(args)
+        written = write_figures(args.pick, args.place, args.out, config)
+    except ImportError as error:
+        sys.stderr.write(f'ellipath plot: {error}\n')
+        return 2
+    except EllipathError as error:
+        sys.stderr.write(f'ellipath plot: {error.kind}: {error}\n')
+        return 2
+    for path in written:
+        sys.stdout.write(f'{path}\n')
+    return 0
+
+
+def _run_demo(args):
+    from ellipath_ros.demo import run_demo
+    return run_demo(args)
+
+
+def build_parser():
+    """Return the argument parser of the ``ellipath`` command."""
+    parser = argparse.ArgumentParser(
+        prog='ellipath', description='Elliptical pick-and-place planning for Delta robots '
+        '(Choe et al., 2023), beyond the paper where it is weak.')
+    commands = parser.add_subparsers(dest='command', required=True)
+    plan = commands.add_parser('plan', help='plan one pick-and-place transfer')
+    _add_plan_arguments(plan)
+    plan.set_defaults(run=_run_plan)
+    plot = commands.add_parser('plot', help="write the paper's figures for a pick/place as PNG")
+    _add_plan_arguments(plot)
+    plot.add_argument('--out', default='figures', help='output folder (default: %(default)s)')
+    plot.set_defaults(run=_run_plot)
+    bench = commands.add_parser(
+        'bench', help='compare the profiles with the TOPP-RA bound; planning time')
+    bench.add_argument('--repeats', type=int, default=20,
+                       help='plans per case for the timing median (default: %(default)s)')
+    bench.set_defaults(run=_run_bench)
+    demo = commands.add_parser(
+        'demo', help='start the node, stream pick/place pairs, validate the trajectories')
+    from ellipath_ros.demo import add_arguments
+    add_arguments(demo)
+    demo.set_defaults(run=_run_demo)
+    return parser
+
+
+def main(argv=None):
+    """Run the ``ellipath`` command; return the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,447 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Orchestration: pick and place in, a validated joint trajectory out.
+
+``plan_transfer`` plans one leg (path, timing, kinematics, knots);
+``plan_cycle`` chains the approach leg from where the robot is, the dwells
+and the transfer leg into one trajectory for the joint_trajectory_controller.
+Both take a :class:`PlannerConfig`, which the CLI and the node build from the
+same flat parameter names (``PlannerConfig.from_flat``).
+"""
+
+from dataclasses import dataclass, field, fields
+import math
+import time
+
+import numpy as np
+
+from .errors import InvalidInputError, require_point, require_range
+from .geometry import ArcPolicy, plan_path
+from .joint_trajectory import (
+    check_joint_limits, DEFAULT_JOINT_NAMES, JointTrajectoryData, minimal_knots,
+    quintic_interpolate, sample_joint_trajectory, validate_jtc)
+from .kinematics import (
+    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_accelerations,
+    joint_velocities, JointLimits)
+from .timing import CartesianLimits, PROFILES, time_motion
+
+OUTPUT_MODES = ('knots', 'samples')
+# Path samples for the reachability check and the joint-speed cap: at most this far apart.
+REACH_CHECK_SPACING = 0.002
+# The joint-speed cap is interpolated between path samples: keep a margin for that.
+JOINT_CAP_MARGIN = 0.97
+# Time step of the dense joint-limit check of the planned motion.
+JOINT_CHECK_PERIOD = 0.0005
+# Interior points per knot segment at which JTC's quintic is checked against the limits.
+QUINTIC_CHECK_SAMPLES = 16
+# Start and pick closer than this: the robot is already at the pick, no approach leg.
+SAME_POINT = 1e-6
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """
+    Everything the planner needs, validated as a whole.
+
+    Attributes
+    ----------
+    geometry : DeltaGeometry
+        Robot dimensions and joint position limits.
+    joint_limits : JointLimits
+        Joint velocity and acceleration limits.
+    limits : CartesianLimits
+        TCP speed, acceleration, jerk and the allowed acceleration step at T1/T2.
+    arc : ArcPolicy
+        How the ellipse is chosen.
+    pick_clearance, place_clearance : float
+        Vertical segments at pick and place [m].
+    profile : str
+        ``'time_optimal'`` or ``'curvature'`` (the paper's).
+    curvature_r : float
+        The paper's proportionality coefficient r [rad/m], curvature profile only.
+    knot_tolerance : float
+        Largest TCP deviation of JTC's interpolation between knots [m].
+    output_mode : str
+        ``'knots'`` (fewest points within ``knot_tolerance``) or ``'samples'``
+        (one point every ``sample_period``).
+    sample_period : float
+        Period of ``'samples'`` output [s].
+    joint_names : tuple of str
+        Names of the joints of arm 0, 1, 2.
+
+    """
+
+    geometry: DeltaGeometry = field(default_factory=DeltaGeometry)
+    joint_limits: JointLimits = field(default_factory=JointLimits)
+    limits: CartesianLimits = field(default_factory=CartesianLimits)
+    arc: ArcPolicy = field(default_factory=ArcPolicy)
+    pick_clearance: float = 0.025
+    place_clearance: float = 0.025
+    profile: str = 'time_optimal'
+    curvature_r: float = 0.77
+    knot_tolerance: float = 1e-4
+    output_mode: str = 'knots'
+    sample_period: float = 0.004
+    joint_names: tuple = DEFAULT_JOINT_NAMES
+
+    def __post_init__(self):
+        require_range('pick_clearance', self.pick_clearance, 0.0, 1.0, unit='m')
+        require_range('place_clearance', self.place_clearance, 0.0, 1.0, unit='m')
+        if self.profile not in PROFILES:
+            raise InvalidInputError(
+                f'profile: expected one of {", ".join(PROFILES)}, got {self.profile!r}')
+        require_range('curvature_r', self.curvature_r, 0.0, 1000.0, low_open=True,
+                      unit='rad/m')
+        require_range('knot_tolerance', self.knot_tolerance, 1e-7, 0.01, unit='m')
+        if self.output_mode not in OUTPUT_MODES:
+            raise InvalidInputError(
+                f'output_mode: expected one of {", ".join(OUTPUT_MODES)}, '
+                f'got {self.output_mode!r}')
+        require_range('sample_period', self.sample_period, 1e-4, 0.1, unit='s')
+        names = tuple(self.joint_names)
+        if (len(names) != 3 or len(set(names)) != 3
+                or not all(isinstance(name, str) and name for name in names)):
+            raise InvalidInputError(
+                f'joint_names: expected 3 distinct non-empty names, got {list(names)!r}')
+        object.__setattr__(self, 'joint_names', names)
+
+    @classmethod
+    def from_flat(cls, values):
+        """
+        Build a config from flat parameter names (those of ``CORE_DEFAULTS``).
+
+        Missing names take their defaults; unknown names are an error.
+        """
+        unknown = sorted(set(values) - set(CORE_DEFAULTS))
+        if unknown:
+            raise InvalidInputError(
+                f'parameters: expected names among {", ".join(sorted(CORE_DEFAULTS))}, '
+                f'got unknown {", ".join(unknown)}')
+        merged = {**CORE_DEFAULTS, **values}
+        sections = {owner: {} for owner in _SECTIONS.values()}
+        top = {}
+        for name, value in merged.items():
+            owner = _SECTIONS.get(name)
+            target = sections[owner] if owner else top
+            target[_RENAMED.get(name, name)] = value
+        return cls(geometry=DeltaGeometry(**sections[DeltaGeometry]),
+                   joint_limits=JointLimits(**sections[JointLimits]),
+                   limits=CartesianLimits(**sections[CartesianLimits]),
+                   arc=ArcPolicy(**sections[ArcPolicy]), **top)
+
+
+# Flat parameter name -> the config section that owns it (others are PlannerConfig's own).
+_SECTIONS = {
+    'base_radius': DeltaGeometry, 'effector_radius': DeltaGeometry, 'upper_arm': DeltaGeometry,
+    'forearm': DeltaGeometry, 'joint_min': DeltaGeometry, 'joint_max': DeltaGeometry,
+    'max_joint_velocity': JointLimits, 'max_joint_accel': JointLimits,
+    'max_speed': CartesianLimits, 'max_accel': CartesianLimits, 'max_jerk': CartesianLimits,
+    'max_accel_jump': CartesianLimits,
+    'arc_policy': ArcPolicy, 'apex_clearance': ArcPolicy, 'min_radius': ArcPolicy,
+}
+_RENAMED = {'max_joint_velocity': 'max_velocity', 'max_joint_accel': 'max_acceleration',
+            'arc_policy': 'kind'}
+
+
+def _core_defaults():
+    """Return the flat defaults, read from the dataclasses (the one source in code)."""
+    defaults = {}
+    default_config = PlannerConfig()
+    sections = {DeltaGeometry: default_config.geometry, JointLimits: default_config.joint_limits,
+                CartesianLimits: default_config.limits, ArcPolicy: default_config.arc}
+    for name, owner in _SECTIONS.items():
+        defaults[name] = getattr(sections[owner], _RENAMED.get(name, name))
+    for item in fields(PlannerConfig):
+        if item.name not in ('geometry', 'joint_limits', 'limits', 'arc'):
+            defaults[item.name] = getattr(default_config, item.name)
+    defaults['joint_names'] = list(defaults['joint_names'])
+    return defaults
+
+
+CORE_DEFAULTS = _core_defaults()
+
+
+@dataclass(frozen=True, eq=False)
+class LegPlan:
+    """
+    One planned leg: path, timed motion and joint trajectory.
+
+    Attributes
+    ----------
+    path : PickPlacePath
+        The geometric path.
+    motion : TimedMotion
+        The Cartesian motion along it (after any slow-down for joint limits).
+    joint_trajectory : JointTrajectoryData
+        Knots or samples for JTC, starting at t = 0.
+    knot_positions : numpy.ndarray
+        TCP positions of the trajectory points, shape (K, 3) [m].
+    max_interpolation_error : float
+        Largest TCP deviation of JTC's quintic interpolation from the motion [m].
+    joint_peak_velocity, joint_peak_accel : float
+        Largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the motion.
+    joint_slowdown : float
+        Time-scaling factor applied to honour the joint acceleration limit (1 = none).
+
+    """
+
+    path: object
+    motion: object
+    joint_trajectory: JointTrajectoryData
+    knot_positions: np.ndarray
+    max_interpolation_error: float
+    joint_peak_velocity: float
+    joint_peak_accel: float
+    joint_slowdown: float
+
+    def summary(self):
+        """Return the leg's numbers as a flat JSON-ready dict (SI, degrees marked ``_deg``)."""
+        path, arc = self.path, self.path.arc
+        motion_metrics = self.motion.metrics()
+        result = {
+            'l': arc.l if arc else None,
+            'h': arc.h if arc else None,
+            'phi_deg': math.degrees(arc.phi) if arc else None,
+            'a': arc.a if arc else None,
+            'b': arc.b if arc else None,
+            'k': arc.k if arc else None,
+            'theta_T1_deg': math.degrees(arc.theta_T1) if arc else None,
+            'theta_T2_deg': math.degrees(arc.theta_T2) if arc else None,
+            'arc_length_approx': arc.length_approx if arc else 0.0,
+            'arc_length': arc.length if arc else 0.0,
+            'path_length': path.length,
+            'segment_lengths': path.segment_lengths.tolist(),
+            'apex': path.apex.tolist(),
+            'apex_height': arc.apex_height if arc else None,
+            'min_radius_of_curvature': arc.min_radius if arc else None,
+            'profile': self.motion.profile,
+            'n_nodes': self.motion.n_nodes,
+            'joint_slowdown': self.joint_slowdown,
+            'joint_peak_velocity': self.joint_peak_velocity,
+            'joint_peak_accel': self.joint_peak_accel,
+            'max_interpolation_error': self.max_interpolation_error,
+            'n_points': int(self.joint_trajectory.time_from_start.size),
+        }
+        result.update(motion_metrics)
+        return result
+
+
+@dataclass(frozen=True, eq=False)
+class CyclePlan:
+    """
+    A whole pick-and-place request: approach, dwell at pick, transfer, dwell at place.
+
+    Attributes
+    ----------
+    legs : tuple of LegPlan
+        (approach, transfer), or (transfer,) when the robot is already at the pick.
+    joint_trajectory : JointTrajectoryData
+        The chained trajectory, validated for JTC.
+    metrics : dict
+        Flat numbers for diagnostics (str -> float or str).
+    end_position : numpy.ndarray
+        TCP position at the end (the place), shape (3,).
+
+    """
+
+    legs: tuple
+    joint_trajectory: JointTrajectoryData
+    metrics: dict
+    end_position: np.ndarray
+
+
+def _speed_cap(path, config):
+    """
+    Check reachability along the path and return the joint-velocity speed cap.
+
+    The cap is ds/dt <= max_joint_velocity / max_i |dq_i/ds|, sampled at most
+    ``REACH_CHECK_SPACING`` apart and interpolated (with a margin) in between.
+    """
+    count = max(int(math.ceil(path.length / REACH_CHECK_SPACING)) + 1, 3)
+    s = np.linspace(0.0, path.length, count)
+    samples = path.evaluate(s)
+    points = np.vstack((samples.position, path.apex))
+    q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
+    dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
+    caps = JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
+        np.abs(dq_ds).max(axis=1), 1e-12)
+
+    def cap(query):
+        return np.interp(query, s, caps)
+    return cap
+
+
+def _joint_peaks(motion, config):
+    """Return peak |q_dot| and |q_ddot| of the motion on a dense time grid."""
+    count = max(int(math.ceil(motion.duration / JOINT_CHECK_PERIOD)) + 1, 3)
+    t = np.linspace(0.0, motion.duration, count)
+    position, velocity, acceleration, _ = motion.evaluate(t)
+    q = inverse_kinematics(position, config.geometry, name='motion point')
+    qdot = joint_velocities(position, q, velocity, config.geometry)
+    qddot = joint_accelerations(position, q, velocity, acceleration, qdot, config.geometry)
+    return float(np.abs(qdot).max()), float(np.abs(qddot).max())
+
+
+def _interpolation_error(motion, trajectory, config, per_segment=8):
+    """Return the largest TCP deviation of JTC's quintic through ``trajectory``."""
+    times = trajectory.time_from_start
+    fractions = np.arange(1, per_segment + 1) / (per_segment + 1.0)
+    t = (times[:-1, None] + np.diff(times)[:, None] * fractions).ravel()
+    q, _, _ = quintic_interpolate(trajectory, t)
+    tcp = forward_kinematics(q, config.geometry, name='interpolated q')
+    return float(np.linalg.norm(tcp - motion.evaluate(t)[0], axis=1).max())
+
+
+def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None):
+    """
+    Plan one leg from ``pick`` to ``place``: path, timing, kinematics, JTC points.
+
+    Parameters
+    ----------
+    pick, place : array_like
+        Start and end TCP positions in the base frame [m], shape (3,).
+    config : PlannerConfig, optional
+        Defaults when omitted.
+    pick_clearance, place_clearance : float, optional
+        Override the config's clearances (the approach leg lifts out of the
+        previous place and descends onto the pick).
+
+    Returns
+    -------
+    LegPlan
+
+    Raises
+    ------
+    EllipathError
+        ``invalid_input``, ``degenerate_geometry``, ``unreachable`` (naming the
+        first point out of reach) or ``limit``.
+
+    """
+    config = config or PlannerConfig()
+    path = plan_path(
+        pick, place,
+        config.pick_clearance if pick_clearance is None else pick_clearance,
+        config.place_clearance if place_clearance is None else place_clearance,
+        config.arc)
+    cap = _speed_cap(path, config)
+    motion = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
+                         speed_cap=cap)
+    peak_velocity, peak_accel = _joint_peaks(motion, config)
+    limits = config.joint_limits
+    # Joint velocity is handled by the cap; joint acceleration (and any cap leak) by slowing
+    # the whole leg down uniformly: q_dot scales with 1/f, q_ddot with 1/f**2.
+    slowdown = max(1.0, peak_velocity / limits.max_velocity,
+                   math.sqrt(peak_accel / limits.max_acceleration))
+    if slowdown > 1.0:
+        slowdown *= 1.005
+        motion = motion.scaled(slowdown)
+        peak_velocity, peak_accel = peak_velocity / slowdown, peak_accel / slowdown ** 2
+    if config.output_mode == 'knots':
+        trajectory, error = minimal_knots(motion, config.geometry, config.joint_names,
+                                          config.knot_tolerance)
+    else:
+        trajectory = sample_joint_trajectory(motion, config.geometry, config.sample_period,
+                                             config.joint_names)
+        error = _interpolation_error(motion, trajectory, config)
+    check_joint_limits(trajectory, config.geometry, limits,
+                       samples_per_segment=QUINTIC_CHECK_SAMPLES)
+    knot_positions = motion.evaluate(trajectory.time_from_start)[0]
+    return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity, peak_accel,
+                   slowdown)
+
+
+def _hold(trajectory, seconds):
+    """Append a rest point ``seconds`` after the last one (a dwell)."""
+    if seconds <= 0.0:
+        return trajectory
+    return _concatenate(trajectory, JointTrajectoryData(
+        trajectory.joint_names, np.array([0.0, seconds]),
+        np.repeat(trajectory.positions[-1:], 2, axis=0), np.zeros((2, 3)), np.zeros((2, 3))))
+
+
+def _concatenate(first, second):
+    """Chain ``second`` after ``first``; its first point (equal to first's last) is dropped."""
+    offset = first.time_from_start[-1]
+    return JointTrajectoryData(
+        first.joint_names,
+        np.concatenate((first.time_from_start, offset + second.time_from_start[1:])),
+        np.vstack((first.positions, second.positions[1:])),
+        np.vstack((first.velocities, second.velocities[1:])),
+        np.vstack((first.accelerations, second.accelerations[1:])))
+
+
+def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0):
+    """
+    Plan the motion from where the robot is, through the pick, to the place.
+
+    Parameters
+    ----------
+    start : array_like
+        Current TCP position [m], shape (3,).
+    pick, place : array_like
+        Pick and place TCP positions [m], shape (3,).
+    config : PlannerConfig, optional
+        Defaults when omitted.
+    pick_dwell, place_dwell : float
+        Rest at the pick and at the place [s], in [0, 10].
+
+    Returns
+    -------
+    CyclePlan
+
+    """
+    started = time.perf_counter()
+    config = config or PlannerConfig()
+    start = require_point('start', start)
+    pick = require_point('pick', pick)
+    place = require_point('place', place)
+    pick_dwell = require_range('pick_dwell', pick_dwell, 0.0, 10.0, unit='s')
+    place_dwell = require_range('place_dwell', place_dwell, 0.0, 10.0, unit='s')
+    transfer = plan_transfer(pick, place, config)
+    legs = (transfer,)
+    trajectory = transfer.joint_trajectory
+    if np.linalg.norm(pick - start) > SAME_POINT:
+        # Approach: lift out of wherever the robot is (as from a place), descend onto the pick.
+        approach = plan_transfer(start, pick, config, pick_clearance=config.place_clearance,
+                                 place_clearance=config.pick_clearance)
+        legs = (approach, transfer)
+        trajectory = _concatenate(_hold(approach.joint_trajectory, pick_dwell), trajectory)
+    elif pick_dwell > 0.0:
+        trajectory = _concatenate(_hold(_rest_point(trajectory), pick_dwell), trajectory)
+    trajectory = _hold(trajectory, place_dwell)
+    validate_jtc(trajectory, config.joint_names)
+    metrics = {f'transfer.{key}': value for key, value in transfer.summary().items()
+               if isinstance(value, (int, float, str))}
+    if len(legs) == 2:
+        metrics.update({f'approach.{key}': value for key, value in legs[0].summary().items()
+                        if isinstance(value, (int, float, str))})
+    metrics.update({
+        'duration': float(trajectory.time_from_start[-1]),
+        'n_points': int(trajectory.time_from_start.size),
+        'max_interpolation_error': max(leg.max_interpolation_error for leg in legs),
+        'joint_peak_velocity': max(leg.joint_peak_velocity for leg in legs),
+        'joint_peak_accel': max(leg.joint_peak_accel for leg in legs),
+        'plan_time': time.perf_counter() - started,
+    })
+    return CyclePlan(legs, trajectory, metrics, place.copy())
+
+
+def _rest_point(trajectory):
+    """Return the first point of ``trajectory`` alone (the robot at rest there)."""
+    return JointTrajectoryData(trajectory.joint_names, trajectory.time_from_start[:1],
+                               trajectory.positions[:1], trajectory.velocities[:1],
+                               trajectory.accelerations[:1])
+
