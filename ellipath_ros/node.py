@@ -139,10 +139,10 @@ class PosePairing:
         try:
             return self._pending.pop(key)
         except KeyError:
-            wanted = 'pending' if key is None else f'with stamp {key}'
+            wanted = 'a pending pick_pose' if key is None else f'a pick_pose with stamp {key}'
             raise UnpairedPlaceError(
-                f'place_pose: expected a pick_pose {wanted} to pair with (pairing {mode}), '
-                'got none') from None
+                f'place_pose: expected {wanted} to pair with (pairing {mode}), got none'
+            ) from None
 
 
 class EllipathNode(Node):
@@ -170,10 +170,10 @@ class EllipathNode(Node):
             '', [(spec.name, spec.default, spec.descriptor()) for spec in PARAMETER_TABLE])
         self._settings = build_settings({parameter.name: parameter.value
                                          for parameter in declared})
-        # Validated by the on-set callback, committed by the post-set callback.
-        self._accepted_settings = None
+        # A change is validated before it is stored and applied once it is: rclpy may still
+        # refuse it after our check (another on-set callback, e.g. use_sim_time's).
         self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._commit_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
 
         self._pairing = PosePairing()
         self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
@@ -201,7 +201,7 @@ class EllipathNode(Node):
         planner = self._settings.planner
         self.get_logger().info(
             f'ready: poses in frame {self._settings.frame_id!r}, pairing '
-            f'{self._settings.pairing}, arc_policy {planner.arc_policy}, profile '
+            f'{self._settings.pairing}, arc_policy {planner.arc.kind}, profile '
             f'{planner.profile}, joints {list(planner.joint_names)}. Pose orientations are '
             'ignored (3-DOF Delta robot: only the position is used).')
 
@@ -212,20 +212,23 @@ class EllipathNode(Node):
 
     # --- parameters -----------------------------------------------------------------------
 
+    def _current_values(self):
+        """Return the current value of every parameter of the table."""
+        return {name: self.get_parameter(name).value for name in PARAMETER_NAMES}
+
     def _validate_parameters(self, parameters):
-        """Accept ``parameters`` only if the merged full set builds a valid configuration."""
-        values = {name: self.get_parameter(name).value for name in PARAMETER_NAMES}
+        """Accept ``parameters`` only if, merged with the current values, the set is valid."""
+        values = self._current_values()
         values.update((parameter.name, parameter.value) for parameter in parameters)
         try:
-            self._accepted_settings = build_settings(values)
+            build_settings(values)
         except EllipathError as error:
-            self._accepted_settings = None
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
-    def _commit_parameters(self, parameters):
-        """Switch to the settings validated for ``parameters``."""
-        self._settings = self._accepted_settings
+    def _apply_parameters(self, parameters):
+        """Switch to the settings of the parameters just stored (validated above)."""
+        self._settings = build_settings(self._current_values())
         changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
         self.get_logger().info(f'parameters changed: {changes}')
 
@@ -286,10 +289,8 @@ class EllipathNode(Node):
         pick = self._pairing.take_pick(message.header.stamp, settings.pairing)
         place = self._checked_position('place_pose', message, settings)
         start, start_source = self._start_position(settings)
-        planning = time.perf_counter()
         plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
                           place_dwell=settings.place_dwell)
-        plan_latency = time.perf_counter() - planning
         stamp = self.get_clock().now().to_msg() if settings.header_stamp == 'now' else Time()
         trajectory = joint_trajectory_message(plan.joint_trajectory, settings.frame_id, stamp)
         # Check what is actually sent, after the conversion to whole nanoseconds.
@@ -299,9 +300,8 @@ class EllipathNode(Node):
         latency = time.perf_counter() - received
         self._last_end_position = plan.end_position
 
-        values = dict(plan.metrics)
-        values.update(plan_latency=plan_latency, receive_to_publish_latency=latency,
-                      start_source=start_source, points=len(trajectory.points))
+        values = dict(plan.metrics)  # its plan_time is the planning latency
+        values.update(receive_to_publish_latency=latency, start_source=start_source)
         self._publish_status(DiagnosticStatus.OK, 'planned', values)
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(plan, settings.frame_id, stamp))

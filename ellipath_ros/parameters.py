@@ -31,8 +31,11 @@ import math
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.errors import require_range
+from ellipath_ros.core.geometry import ARC_POLICIES
 from ellipath_ros.core.planner import CORE_DEFAULTS
+from ellipath_ros.core.planner import OUTPUT_MODES
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.timing import PROFILES
 from rcl_interfaces.msg import FloatingPointRange
 from rcl_interfaces.msg import IntegerRange
 from rcl_interfaces.msg import ParameterDescriptor
@@ -142,8 +145,8 @@ PARAMETER_TABLE = (
     _node('header_stamp', _STRING, 'zero', '',
           'Trajectory header.stamp: zero = the controller starts it on receipt, now = the '
           'node clock at publication', choices=('zero', 'now')),
-    _node('pick_dwell', _DOUBLE, 0.0, 's', 'Pause at the pick point', low=0.0, high=60.0),
-    _node('place_dwell', _DOUBLE, 0.0, 's', 'Pause at the place point', low=0.0, high=60.0),
+    _node('pick_dwell', _DOUBLE, 0.0, 's', 'Pause at the pick point', low=0.0, high=10.0),
+    _node('place_dwell', _DOUBLE, 0.0, 's', 'Pause at the place point', low=0.0, high=10.0),
     _node('home_position', _DOUBLE_ARRAY, [0.0, 0.0, -0.8], 'm',
           'TCP start position (x, y, z) when neither a fresh joint state nor a previous '
           'trajectory is known'),
@@ -167,18 +170,18 @@ PARAMETER_TABLE = (
     _core('arc_policy', _STRING, '',
           "Choice of the ellipse: paper = the paper's rule, apex_clearance = apex this high "
           'above the upper tangent point, min_radius = smallest radius of curvature this large',
-          choices=('paper', 'apex_clearance', 'min_radius')),
+          choices=ARC_POLICIES),
     _core('apex_clearance', _DOUBLE, 'm', 'Apex height above the upper tangent point '
-          '(arc_policy apex_clearance)', low=0.0, high=1.0),
+          '(arc_policy apex_clearance)', low=0.0, high=2.0),
     _core('min_radius', _DOUBLE, 'm', 'Smallest radius of curvature of the arc '
-          '(arc_policy min_radius)', low=0.0, high=1.0),
+          '(arc_policy min_radius)', low=0.0, high=2.0),
     # Timing.
     _core('profile', _STRING, '',
           'Motion profile on the arc: time_optimal = jerk-limited time-optimal, curvature = '
-          "the paper's radius-of-curvature method", choices=('time_optimal', 'curvature')),
+          "the paper's radius-of-curvature method", choices=PROFILES),
     _core('curvature_r', _DOUBLE, 'rad/m',
           "Gain r of the paper's profile: parameter step = r * radius of curvature "
-          '(profile curvature)', low=0.0, high=100.0),
+          '(profile curvature)', low=0.0, high=1000.0),
     _core('max_speed', _DOUBLE, 'm/s', 'TCP speed limit', low=0.0, high=100.0),
     _core('max_accel', _DOUBLE, 'm/s^2', 'TCP acceleration norm limit', low=0.0, high=1.0e4),
     _core('max_jerk', _DOUBLE, 'm/s^3', 'TCP jerk limit', low=0.0, high=1.0e7),
@@ -189,14 +192,14 @@ PARAMETER_TABLE = (
     _core('max_joint_accel', _DOUBLE, 'rad/s^2', 'Joint acceleration limit',
           low=0.0, high=1.0e5),
     # Trajectory output.
-    _core('knot_tolerance', _DOUBLE, 'm',
-          "Largest TCP deviation of the controller's interpolation between knots (knots mode)",
-          low=0.0, high=0.01),
     _core('output_mode', _STRING, '',
           'Trajectory points: knots = as few as knot_tolerance allows, samples = one every '
-          'sample_period', choices=('knots', 'samples')),
+          'sample_period', choices=OUTPUT_MODES),
+    _core('knot_tolerance', _DOUBLE, 'm',
+          "Largest TCP deviation of the controller's interpolation between knots (knots mode)",
+          low=1e-7, high=0.01),
     _core('sample_period', _DOUBLE, 's', 'Time between points (output_mode samples)',
-          low=0.0, high=1.0),
+          low=1e-4, high=0.1),
 )
 
 PARAMETER_NAMES = tuple(spec.name for spec in PARAMETER_TABLE)

@@ -230,7 +230,7 @@ def test_bad_inputs_are_rejected_with_the_value():
         plan_path([0.0, 0.0, -0.8], [0.1, 0.0])
     with pytest.raises(InvalidInputError, match=r'pick_clearance: expected a value in \[0, 1\]'):
         plan_path([0.0, 0.0, -0.8], [0.1, 0.0, -0.8], pick_clearance=-0.01)
-    with pytest.raises(InvalidInputError, match='arc policy: expected one of'):
+    with pytest.raises(InvalidInputError, match='arc_policy: expected one of'):
         ArcPolicy('lame')
     with pytest.raises(InvalidInputError, match='apex_clearance'):
         ArcPolicy('apex_clearance', apex_clearance=0.0)

@@ -86,17 +86,17 @@ def test_default_geometry_and_limits_match_the_design():
     ({'joint_min': 'low'}, 'joint_min'),
 ])
 def test_geometry_rejects_bad_values(changes, field):
-    with pytest.raises(InvalidInputError, match=rf'DeltaGeometry\.{field}: expected .*, got'):
+    with pytest.raises(InvalidInputError, match=rf'^{field}: expected .*, got'):
         DeltaGeometry(**changes)
 
 
 @pytest.mark.parametrize('changes, field', [
-    ({'max_velocity': 0.0}, 'max_velocity'),
-    ({'max_acceleration': -1.0}, 'max_acceleration'),
-    ({'max_velocity': float('inf')}, 'max_velocity'),
+    ({'max_velocity': 0.0}, 'max_joint_velocity'),
+    ({'max_acceleration': -1.0}, 'max_joint_accel'),
+    ({'max_velocity': float('inf')}, 'max_joint_velocity'),
 ])
 def test_joint_limits_reject_bad_values(changes, field):
-    with pytest.raises(InvalidInputError, match=rf'JointLimits\.{field}: expected .*, got'):
+    with pytest.raises(InvalidInputError, match=rf'^{field}: expected .*, got'):
         JointLimits(**changes)
 
 

@@ -97,19 +97,19 @@ class DeltaGeometry:
     def __post_init__(self):
         """Check every dimension and store them as floats."""
         for field in ('base_radius', 'effector_radius', 'upper_arm', 'forearm'):
-            value = require_range(f'DeltaGeometry.{field}', getattr(self, field), 0.0,
+            value = require_range(field, getattr(self, field), 0.0,
                                   low_open=True, unit='m')
             object.__setattr__(self, field, value)
         offset = abs(self.base_radius - self.effector_radius)
         # A forearm no longer than the radial offset cannot hang the effector below the base.
-        require_range('DeltaGeometry.forearm', self.forearm, offset, low_open=True, unit='m')
+        require_range('forearm', self.forearm, offset, low_open=True, unit='m')
         for field in ('joint_min', 'joint_max'):
-            value = require_range(f'DeltaGeometry.{field}', getattr(self, field), -math.pi,
+            value = require_range(field, getattr(self, field), -math.pi,
                                   math.pi, unit='rad')
             object.__setattr__(self, field, value)
         if not self.joint_min < self.joint_max:
             raise InvalidInputError(
-                f'DeltaGeometry.joint_max: expected a value > joint_min = {self.joint_min:g} '
+                f'joint_max: expected a value > joint_min = {self.joint_min:g} '
                 f'rad, got {self.joint_max:g}')
 
 
@@ -133,9 +133,9 @@ class JointLimits:
     def __post_init__(self):
         """Check that both limits are finite and positive, and store them as floats."""
         object.__setattr__(self, 'max_velocity', require_range(
-            'JointLimits.max_velocity', self.max_velocity, 0.0, low_open=True, unit='rad/s'))
+            'max_joint_velocity', self.max_velocity, 0.0, low_open=True, unit='rad/s'))
         object.__setattr__(self, 'max_acceleration', require_range(
-            'JointLimits.max_acceleration', self.max_acceleration, 0.0, low_open=True,
+            'max_joint_accel', self.max_acceleration, 0.0, low_open=True,
             unit='rad/s^2'))
 
 
