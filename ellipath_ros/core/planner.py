@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from .errors import InvalidInputError, require_point, require_range
+from .errors import InvalidInputError, LimitError, require_point, require_range
 from .geometry import ArcPolicy, plan_path
 from .joint_trajectory import (
     check_joint_limits, DEFAULT_JOINT_NAMES, JointTrajectoryData, minimal_knots,
@@ -47,6 +47,11 @@ JOINT_CAP_MARGIN = 0.97
 JOINT_CHECK_PERIOD = 0.0005
 # Interior points per knot segment at which JTC's quintic is checked against the limits.
 QUINTIC_CHECK_SAMPLES = 16
+# Share of the joint limits the motion itself may use (JTC's quintic may overshoot it).
+JOINT_LIMIT_SHARE = 0.99
+# Extra slow-down steps when the interpolated trajectory still breaks a joint limit.
+SLOWDOWN_ATTEMPTS = 4
+SLOWDOWN_STEP = 1.02
 # Start and pick closer than this: the robot is already at the pick, no approach leg.
 SAME_POINT = 1e-6
 
@@ -337,30 +342,40 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
         config.place_clearance if place_clearance is None else place_clearance,
         config.arc)
     cap = _speed_cap(path, config)
-    motion = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
-                         speed_cap=cap)
-    peak_velocity, peak_accel = _joint_peaks(motion, config)
+    timed = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
+                        speed_cap=cap)
+    peak_velocity, peak_accel = _joint_peaks(timed, config)
     limits = config.joint_limits
     # Joint velocity is handled by the cap; joint acceleration (and any cap leak) by slowing
-    # the whole leg down uniformly: q_dot scales with 1/f, q_ddot with 1/f**2.
-    slowdown = max(1.0, peak_velocity / limits.max_velocity,
-                   math.sqrt(peak_accel / limits.max_acceleration))
-    if slowdown > 1.0:
-        slowdown *= 1.005
-        motion = motion.scaled(slowdown)
-        peak_velocity, peak_accel = peak_velocity / slowdown, peak_accel / slowdown ** 2
-    if config.output_mode == 'knots':
-        trajectory, error = minimal_knots(motion, config.geometry, config.joint_names,
-                                          config.knot_tolerance)
-    else:
-        trajectory = sample_joint_trajectory(motion, config.geometry, config.sample_period,
-                                             config.joint_names)
-        error = _interpolation_error(motion, trajectory, config)
-    check_joint_limits(trajectory, config.geometry, limits,
-                       samples_per_segment=QUINTIC_CHECK_SAMPLES)
+    # the whole leg down uniformly: q_dot scales with 1/f, q_ddot with 1/f**2. JTC's quintic
+    # between knots can overshoot the motion's peaks a little: keep a margin, and slow down
+    # further (a few times at most) if the interpolated trajectory still breaks a limit.
+    slowdown = max(1.0, peak_velocity / (JOINT_LIMIT_SHARE * limits.max_velocity),
+                   math.sqrt(peak_accel / (JOINT_LIMIT_SHARE * limits.max_acceleration)))
+    for attempt in range(SLOWDOWN_ATTEMPTS):
+        motion = timed.scaled(slowdown) if slowdown > 1.0 else timed
+        trajectory, error = _joint_points(motion, config)
+        try:
+            check_joint_limits(trajectory, config.geometry, limits,
+                               samples_per_segment=QUINTIC_CHECK_SAMPLES)
+            break
+        except LimitError:
+            if attempt == SLOWDOWN_ATTEMPTS - 1:
+                raise
+            slowdown *= SLOWDOWN_STEP
     knot_positions = motion.evaluate(trajectory.time_from_start)[0]
-    return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity, peak_accel,
-                   slowdown)
+    return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
+                   peak_accel / slowdown ** 2, slowdown)
+
+
+def _joint_points(motion, config):
+    """Return the JTC points of ``motion`` (knots or samples) and their TCP deviation."""
+    if config.output_mode == 'knots':
+        return minimal_knots(motion, config.geometry, config.joint_names,
+                             config.knot_tolerance)
+    trajectory = sample_joint_trajectory(motion, config.geometry, config.sample_period,
+                                         config.joint_names)
+    return trajectory, _interpolation_error(motion, trajectory, config)
 
 
 def _hold(trajectory, seconds):
@@ -444,4 +459,3 @@ def _rest_point(trajectory):
     return JointTrajectoryData(trajectory.joint_names, trajectory.time_from_start[:1],
                                trajectory.positions[:1], trajectory.velocities[:1],
                                trajectory.accelerations[:1])
-
