@@ -44,6 +44,7 @@ is refused with its reason while the previous configuration stays in force.
 
 from collections import OrderedDict
 import sys
+import threading
 import time
 import traceback
 
@@ -86,6 +87,8 @@ NODE_NAME = 'ellipath_node'
 # default group that serves the parameter services), so neither joint states nor parameter
 # requests wait behind a plan, and a plan waits for nothing but the GIL.
 EXECUTOR_THREADS = 3
+# How long shutdown waits for a plan in progress before destroying the node [s].
+SHUTDOWN_WAIT = 2.0
 
 
 class UnpairedPlaceError(EllipathError):
@@ -176,6 +179,8 @@ class EllipathNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
 
         self._pairing = PosePairing()
+        # Held while a request is served, so shutdown can wait for a plan in progress.
+        self._serving = threading.Lock()
         self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
         self._last_end_position = None
         self._status_name = f'{self.get_name()}: plan'
@@ -204,6 +209,13 @@ class EllipathNode(Node):
             f'{self._settings.pairing}, arc_policy {planner.arc.kind}, profile '
             f'{planner.profile}, joints {list(planner.joint_names)}. Pose orientations are '
             'ignored (3-DOF Delta robot: only the position is used).')
+
+    def wait_until_idle(self, timeout):
+        """Wait up to ``timeout`` s for the request being served; return True if idle."""
+        if not self._serving.acquire(timeout=timeout):
+            return False
+        self._serving.release()
+        return True
 
     @property
     def pending_pick_count(self):
@@ -251,7 +263,8 @@ class EllipathNode(Node):
         received = time.perf_counter()
         settings = self._settings  # one consistent snapshot for the whole request
         try:
-            handler(message, settings, received)
+            with self._serving:
+                handler(message, settings, received)
         except EllipathError as error:
             self.get_logger().warn(f'{topic} rejected: {error}')
             self._publish_status(DiagnosticStatus.ERROR, str(error),
@@ -361,6 +374,8 @@ def main(args=None):
     finally:
         executor.shutdown()
         if node is not None:
+            # The executor does not wait for callbacks still running in its threads.
+            node.wait_until_idle(SHUTDOWN_WAIT)
             node.destroy_node()
         rclpy.try_shutdown()
     return exit_code
