@@ -1,0 +1,324 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Timing laws: limits on the continuous motion, continuity, the paper's nodes, the API."""
+
+import functools
+import math
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.geometry import ArcPolicy, plan_path
+from ellipath_ros.core.timing import (
+    CartesianLimits, curvature_nodes, PROFILES, time_motion, TimedMotion)
+import numpy as np
+import pytest
+
+# Fine sampling of the continuous motion [s].
+PERIOD = 1e-4
+# Relative slack on a limit for rounding only (the planner aims below the limits).
+ROUNDING = 1e-9
+LIMITS = CartesianLimits()
+APEX = ArcPolicy('apex_clearance', apex_clearance=0.025)
+
+PATHS = {
+    'paper': lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75]),
+    'cycle_25_305_25': lambda: plan_path([0, 0, -0.8], [0.305, 0, -0.8], policy=APEX),
+    'h_negative': lambda: plan_path([0, 0, -0.75], [0.3, 0, -0.8]),
+    'h_zero_paper': lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.8]),
+    'vertical': lambda: plan_path([0.1, 0, -0.9], [0.1, 0, -0.7]),
+    'clearance_0': lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75], 0.0, 0.0),
+    'clearance_1mm': lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75], 0.001, 0.001),
+    'steep_apex': lambda: plan_path([0, 0, -0.9], [0.05, 0, -0.7], policy=APEX),
+}
+CASES = [(name, profile) for name in PATHS for profile in PROFILES]
+
+
+@functools.lru_cache(maxsize=None)
+def motion_of(name, profile, max_accel_jump=25.0):
+    """Return the motion of a named path (computed once)."""
+    return time_motion(PATHS[name](), CartesianLimits(max_accel_jump=max_accel_jump),
+                       profile=profile)
+
+
+@functools.lru_cache(maxsize=None)
+def samples_of(name, profile):
+    """Return (t, s, s', s'', s''', position, velocity, acceleration, jerk), fine samples."""
+    motion = motion_of(name, profile)
+    t = np.linspace(0.0, motion.duration, int(math.ceil(motion.duration / PERIOD)) + 1)
+    return (t,) + motion.path_state(t) + motion.evaluate(t)
+
+
+def one_sided(motion, t_join, epsilon=1e-7):
+    """Return the Cartesian state just before and just after ``t_join``."""
+    t = np.array([t_join - epsilon, t_join + epsilon])
+    return motion.evaluate(np.clip(t, 0.0, motion.duration))
+
+
+@pytest.mark.parametrize('name,profile', CASES)
+def test_limits_hold_on_fine_samples(name, profile):
+    _, _, _, _, _, _, velocity, acceleration, jerk = samples_of(name, profile)
+    assert np.linalg.norm(velocity, axis=1).max() <= LIMITS.max_speed * (1 + ROUNDING)
+    assert np.linalg.norm(acceleration, axis=1).max() <= LIMITS.max_accel * (1 + ROUNDING)
+    assert np.linalg.norm(jerk, axis=1).max() <= LIMITS.max_jerk * (1 + ROUNDING)
+
+
+@pytest.mark.parametrize('name,profile', CASES)
+def test_progress_is_monotone_from_rest_to_rest(name, profile):
+    motion = motion_of(name, profile)
+    t, s, v, a, _, position, _, _, _ = samples_of(name, profile)
+    assert v.min() >= -1e-12
+    assert np.all(np.diff(s) >= -1e-12)
+    assert s[0] == pytest.approx(0.0, abs=1e-12)
+    assert s[-1] == pytest.approx(motion.path.length, abs=1e-9)
+    assert abs(v[0]) + abs(a[0]) < 1e-9 and abs(v[-1]) + abs(a[-1]) < 1e-6
+    np.testing.assert_allclose(position[0], motion.path.pick, atol=1e-12)
+    np.testing.assert_allclose(position[-1], motion.path.place, atol=1e-9)
+    assert motion.duration == pytest.approx(t[-1])
+    assert motion.segment_durations.sum() == pytest.approx(motion.duration)
+
+
+@pytest.mark.parametrize('name,profile', CASES)
+def test_velocity_and_acceleration_are_continuous(name, profile):
+    """Between samples v changes by at most a_max dt, s'' by at most max|s'''| dt, ..."""
+    motion = motion_of(name, profile)
+    t, _, _, a, j, _, velocity, acceleration, _ = samples_of(name, profile)
+    step = np.diff(t).max()
+    assert np.linalg.norm(np.diff(velocity, axis=0), axis=1).max() <= (
+        LIMITS.max_accel * step * (1 + 1e-6))
+    assert np.abs(np.diff(a)).max() <= np.abs(j).max() * step * (1 + 1e-6) + 1e-9
+    jumps = np.linalg.norm(np.diff(acceleration, axis=0), axis=1)
+    allowed = LIMITS.max_jerk * step * (1 + 1e-6)
+    steps = jumps > allowed
+    # ... and the acceleration vector by at most j_max dt except at the two joins, where it
+    # steps by the amount the motion reports.
+    assert steps.sum() <= 2
+    assert jumps.max() <= max(motion.accel_jump_T1, motion.accel_jump_T2) + allowed
+
+
+@pytest.mark.parametrize('name,profile', [case for case in CASES if case[0] != 'vertical'])
+def test_joins_t1_t2_continuous_with_bounded_step(name, profile):
+    motion = motion_of(name, profile)
+    s_joins = motion.path.segment_ends[1:3]
+    t_joins = (motion.segment_durations[0], motion.duration - motion.segment_durations[2])
+    for s_join, t_join, reported in zip(s_joins, t_joins,
+                                        (motion.accel_jump_T1, motion.accel_jump_T2)):
+        assert motion.path_state([t_join])[0][0] == pytest.approx(s_join, abs=1e-9)
+        _, velocity, acceleration, _ = one_sided(motion, t_join)
+        assert np.linalg.norm(velocity[1] - velocity[0]) <= 1e-4
+        step = np.linalg.norm(acceleration[1] - acceleration[0])
+        assert step <= LIMITS.max_accel_jump * (1 + 1e-6)
+        assert step == pytest.approx(reported, abs=2e-3)
+        # The tangential acceleration is continuous: only the normal part steps.
+        a_before, a_after = motion.path_state(
+            np.clip([t_join - 1e-7, t_join + 1e-7], 0.0, motion.duration))[2]
+        assert abs(a_after - a_before) <= 1e-2
+
+
+@pytest.mark.parametrize('profile', PROFILES)
+@pytest.mark.parametrize('max_accel_jump', [5.0, 0.0])
+def test_smaller_accel_jump_is_kept(profile, max_accel_jump):
+    motion = motion_of('paper', profile, max_accel_jump)
+    assert max(motion.accel_jump_T1, motion.accel_jump_T2) <= max_accel_jump * (1 + 1e-9)
+    _, _, acceleration, _ = one_sided(motion, motion.segment_durations[0])
+    assert np.linalg.norm(acceleration[1] - acceleration[0]) <= max_accel_jump + 1e-3
+    if max_accel_jump == 0.0:
+        assert motion.path_state([motion.segment_durations[0]])[1][0] == pytest.approx(
+            0.0, abs=1e-9)
+
+
+def test_time_optimal_is_much_faster_than_the_papers_profile():
+    optimal = motion_of('paper', 'time_optimal')
+    paper = motion_of('paper', 'curvature')
+    assert optimal.duration < 0.3
+    assert paper.duration > 5.0 * optimal.duration
+
+
+def test_time_optimal_meets_the_cartesian_limits_closely():
+    """Close to the limits somewhere (a timing law far below them would not be optimal)."""
+    metrics = motion_of('cycle_25_305_25', 'time_optimal').metrics()
+    assert metrics['peak_accel'] > 0.95 * LIMITS.max_accel
+    assert metrics['peak_jerk'] > 0.95 * LIMITS.max_jerk
+    assert metrics['accel_jump_T1'] > 0.95 * LIMITS.max_accel_jump
+
+
+def test_papers_example_has_80_nodes_and_the_last_is_clamped():
+    arc = plan_path([0, 0, -0.8], [0.3, 0, -0.75]).arc
+    nodes = curvature_nodes(arc, 0.77)
+    assert nodes.size == 80
+    assert nodes[0] == arc.theta_T1
+    assert nodes[-1] == arc.theta_T2
+    steps = -np.diff(nodes[:-1])
+    np.testing.assert_allclose(steps, 0.77 * arc.radius_of_curvature(nodes[:-2]), rtol=1e-12)
+    # Step 7 as written overshoots T2 with the last step; the clamp shortens it.
+    assert nodes[-2] - 0.77 * arc.radius_of_curvature(nodes[-2]) < arc.theta_T2
+    assert motion_of('paper', 'curvature').n_nodes == 80
+    assert motion_of('paper', 'time_optimal').n_nodes is None
+
+
+def test_curvature_profile_speed_follows_the_radius_of_curvature():
+    """The rule's speed is K sigma**4 / (a b), proportional to rho**(4/3) along the arc."""
+    motion = motion_of('paper', 'curvature')
+    arc = motion.path.arc
+    t = np.linspace(motion.segment_durations[0] + 0.05,
+                    motion.duration - motion.segment_durations[2] - 0.05, 50)
+    s, v, _, _ = motion.path_state(t)
+    theta = arc.theta_from_t(arc.t_from_s(s - motion.path.segment_ends[1]))
+    ratio = v / arc.radius_of_curvature(theta) ** (4.0 / 3.0)
+    np.testing.assert_allclose(ratio, ratio[0], rtol=1e-6)
+
+
+@pytest.mark.parametrize('name,profile', [('paper', 'curvature'), ('paper', 'time_optimal'),
+                                          ('clearance_0', 'curvature')])
+def test_derivatives_match_finite_differences(name, profile):
+    motion = motion_of(name, profile)
+    t = np.linspace(0.01, motion.duration - 0.01, 400)
+    h = 1e-6
+    position, velocity, acceleration, _ = motion.evaluate(t)
+    ahead, behind = motion.evaluate(t + h), motion.evaluate(t - h)
+    np.testing.assert_allclose((ahead[0] - behind[0]) / (2 * h), velocity, atol=1e-5)
+    np.testing.assert_allclose((ahead[1] - behind[1]) / (2 * h), acceleration, atol=2e-2)
+    s, v, a, _ = motion.path_state(t)
+    s_ahead, v_ahead, _, _ = motion.path_state(t + h)
+    np.testing.assert_allclose((s_ahead - s) / h, v, atol=1e-3)
+
+
+def test_speed_cap_is_respected():
+    path = plan_path([0, 0, -0.8], [0.3, 0, -0.75])
+    s_dip = path.segment_ends[1] + 0.5 * path.segment_lengths[1]
+
+    def cap(s):
+        return 3.0 - 2.5 * np.exp(-((s - s_dip) / 0.03) ** 2)
+
+    for profile in PROFILES:
+        motion = time_motion(path, profile=profile, speed_cap=cap)
+        t = np.linspace(0.0, motion.duration, int(motion.duration / PERIOD) + 1)
+        s, v, _, _ = motion.path_state(t)
+        assert np.max(v / cap(s)) <= 1.0 + ROUNDING
+        assert motion.duration > motion_of('paper', profile).duration
+
+
+def test_scaled_slows_down_uniformly():
+    motion = motion_of('paper', 'time_optimal')
+    factor = 1.7
+    slow = motion.scaled(factor)
+    assert isinstance(slow, TimedMotion)
+    assert slow.duration == pytest.approx(factor * motion.duration)
+    np.testing.assert_allclose(slow.segment_durations, factor * motion.segment_durations)
+    assert slow.accel_jump_T1 == pytest.approx(motion.accel_jump_T1 / factor ** 2)
+    t = np.linspace(0.0, motion.duration, 97)
+    fast_state = motion.evaluate(t)
+    slow_state = slow.evaluate(factor * t)
+    for power, (fast, slow_value) in enumerate(zip(fast_state, slow_state)):
+        np.testing.assert_allclose(slow_value, fast / factor ** power, atol=1e-9)
+    assert slow.scaled(2.0).duration == pytest.approx(2.0 * slow.duration)
+    assert motion.scaled(1.0).duration == motion.duration
+
+
+def test_metrics_report_the_motion():
+    motion = motion_of('paper', 'time_optimal')
+    metrics = motion.metrics()
+    assert set(metrics) == {'duration', 'segment_durations', 'peak_speed', 'peak_accel',
+                            'peak_jerk', 'accel_jump_T1', 'accel_jump_T2'}
+    _, _, _, _, _, _, velocity, acceleration, jerk = samples_of('paper', 'time_optimal')
+    assert metrics['peak_speed'] == pytest.approx(np.linalg.norm(velocity, axis=1).max())
+    assert metrics['peak_accel'] == pytest.approx(np.linalg.norm(acceleration, axis=1).max())
+    assert metrics['peak_jerk'] == pytest.approx(np.linalg.norm(jerk, axis=1).max())
+    assert metrics['duration'] == motion.duration
+    assert metrics['segment_durations'] == motion.segment_durations.tolist()
+    assert all(isinstance(value, float) for key, value in metrics.items()
+               if key != 'segment_durations')
+
+
+def test_vertical_move_has_one_segment_and_no_steps():
+    motion = motion_of('vertical', 'time_optimal')
+    assert motion.segment_durations[0] == motion.duration
+    assert motion.segment_durations[1:].tolist() == [0.0, 0.0]
+    assert motion.accel_jump_T1 == motion.accel_jump_T2 == 0.0
+    down = time_motion(plan_path([0.1, 0, -0.7], [0.1, 0, -0.9]))
+    assert down.segment_durations[2] == down.duration
+
+
+@pytest.mark.parametrize('profile,message', [
+    ('x', "profile: expected one of curvature, time_optimal, got 'x'"),
+    (None, 'profile: expected one of curvature, time_optimal, got None'),
+])
+def test_invalid_profile(profile, message):
+    with pytest.raises(InvalidInputError) as error:
+        time_motion(PATHS['paper'](), profile=profile)
+    assert str(error.value) == message
+
+
+@pytest.mark.parametrize('r', [0.0, -0.77, math.nan, math.inf, 'a'])
+def test_invalid_r(r):
+    with pytest.raises(InvalidInputError, match='^r: expected'):
+        time_motion(PATHS['paper'](), profile='curvature', r=r)
+    with pytest.raises(InvalidInputError, match='^r: expected'):
+        curvature_nodes(PATHS['paper']().arc, r)
+
+
+def test_tiny_r_is_refused_before_building_a_huge_node_list():
+    with pytest.raises(InvalidInputError, match='^r: expected a value giving at most'):
+        curvature_nodes(PATHS['paper']().arc, 1e-6)
+
+
+@pytest.mark.parametrize('field,value', [
+    ('max_speed', 0.0), ('max_speed', -1.0), ('max_accel', math.nan), ('max_jerk', math.inf),
+    ('max_accel_jump', -0.1), ('max_accel', 'fast'),
+])
+def test_invalid_limits(field, value):
+    with pytest.raises(InvalidInputError, match=f'^{field}: expected'):
+        CartesianLimits(**{field: value})
+
+
+def test_invalid_arguments():
+    path = PATHS['paper']()
+    with pytest.raises(InvalidInputError, match='^path: expected a PickPlacePath'):
+        time_motion('path')
+    with pytest.raises(InvalidInputError, match='^limits: expected a CartesianLimits'):
+        time_motion(path, {'max_speed': 1.0})
+    with pytest.raises(InvalidInputError, match='^speed_cap: expected a callable'):
+        time_motion(path, speed_cap=2.0)
+    with pytest.raises(InvalidInputError, match='^speed_cap: expected positive'):
+        time_motion(path, speed_cap=lambda s: np.zeros_like(s))
+    with pytest.raises(InvalidInputError, match='^speed_cap: expected positive'):
+        time_motion(path, speed_cap=lambda s: np.ones(3))
+    motion = motion_of('paper', 'time_optimal')
+    with pytest.raises(InvalidInputError, match='^t: expected'):
+        motion.evaluate([motion.duration + 1e-3])
+    with pytest.raises(InvalidInputError, match='^t: expected'):
+        motion.path_state([math.nan])
+    with pytest.raises(InvalidInputError, match='^factor: expected'):
+        motion.scaled(0.5)
+    with pytest.raises(InvalidInputError, match='^sample_period: expected'):
+        motion.metrics(0.0)
+
+
+@pytest.mark.parametrize('name', ['paper', 'cycle_25_305_25'])
+@pytest.mark.parametrize('max_accel_jump,target', [(25.0, 1.15), (5.0, 1.25)])
+def test_time_optimal_is_close_to_the_bound_without_jerk_limit(name, max_accel_jump, target):
+    """No jerk-limited motion beats TOPP-RA's bound; ours stays within the target of it."""
+    pytest.importorskip('toppra')
+    from ellipath_ros.bench import topp_bound
+    motion = motion_of(name, 'time_optimal', max_accel_jump)
+    bound = topp_bound(motion.path, CartesianLimits(max_accel_jump=max_accel_jump))
+    assert bound < motion.duration <= target * bound
+
+
+def test_node_period_is_the_papers_time_step():
+    """Delta t = r / K; the rule takes about one Delta t per node along the arc."""
+    motion = motion_of('paper', 'curvature')
+    arc_time = motion.segment_durations[1]
+    assert motion.node_period == pytest.approx(arc_time / (motion.n_nodes - 1), rel=0.05)
+    assert motion.scaled(2.0).node_period == pytest.approx(2.0 * motion.node_period)
+    assert motion_of('paper', 'time_optimal').node_period is None
