@@ -52,6 +52,12 @@ JOINT_LIMIT_SHARE = 0.99
 # Extra slow-down steps when the interpolated trajectory still breaks a joint limit.
 SLOWDOWN_ATTEMPTS = 4
 SLOWDOWN_STEP = 1.02
+# JTC's interpolated TCP speed and acceleration may exceed the Cartesian limits by this share
+# (a quintic through knots within 0.1 mm still bends its acceleration by a few percent);
+# beyond it the knots are refined (tolerance divided by the factor, a few times at most).
+INTERPOLATION_SLACK = 0.05
+KNOT_REFINEMENTS = 4
+KNOT_REFINEMENT_FACTOR = 3.0
 # Start and pick closer than this: the robot is already at the pick, no approach leg.
 SAME_POINT = 1e-6
 
@@ -369,13 +375,63 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
 
 
 def _joint_points(motion, config):
-    """Return the JTC points of ``motion`` (knots or samples) and their TCP deviation."""
-    if config.output_mode == 'knots':
-        return minimal_knots(motion, config.geometry, config.joint_names,
-                             config.knot_tolerance)
-    trajectory = sample_joint_trajectory(motion, config.geometry, config.sample_period,
-                                         config.joint_names)
-    return trajectory, _interpolation_error(motion, trajectory, config)
+    """
+    Return the JTC points of ``motion`` (knots or samples) and their TCP deviation.
+
+    Knots bound the position deviation of JTC's interpolation; its TCP speed and
+    acceleration can still exceed the planned ones. Knots are refined (a tighter
+    tolerance) until the interpolated TCP peaks stay within ``INTERPOLATION_SLACK`` of the
+    Cartesian limits.
+    """
+    if config.output_mode == 'samples':
+        trajectory = sample_joint_trajectory(motion, config.geometry, config.sample_period,
+                                             config.joint_names)
+        error = _interpolation_error(motion, trajectory, config)
+        _check_interpolated_peaks(trajectory, config)
+        return trajectory, error
+    tolerance = config.knot_tolerance
+    for attempt in range(KNOT_REFINEMENTS):
+        trajectory, error = minimal_knots(motion, config.geometry, config.joint_names,
+                                          tolerance)
+        try:
+            _check_interpolated_peaks(trajectory, config)
+            return trajectory, error
+        except LimitError:
+            if attempt == KNOT_REFINEMENTS - 1:
+                raise
+            tolerance /= KNOT_REFINEMENT_FACTOR
+    return trajectory, error
+
+
+def interpolated_tcp_peaks(trajectory, geometry, period=1e-4):
+    """
+    Return the peak TCP speed [m/s] and acceleration [m/s^2] of JTC's interpolation.
+
+    Forward kinematics of the quintic on a ``period`` grid, differentiated twice
+    (FK is exact to ~1e-15 m, so the differences carry no noise worth the name).
+    """
+    times = trajectory.time_from_start
+    count = max(int(math.ceil((times[-1] - times[0]) / period)) + 1, 5)
+    t = np.linspace(times[0], times[-1], count)
+    q, _, _ = quintic_interpolate(trajectory, t)
+    tcp = forward_kinematics(q, geometry, name='interpolated q')
+    step = t[1] - t[0]
+    velocity = np.gradient(tcp, step, axis=0)
+    acceleration = np.diff(tcp, 2, axis=0) / step ** 2
+    return (float(np.linalg.norm(velocity, axis=1).max()),
+            float(np.linalg.norm(acceleration, axis=1).max()))
+
+
+def _check_interpolated_peaks(trajectory, config):
+    """Raise LimitError if JTC's interpolation breaks a Cartesian limit beyond the slack."""
+    speed, accel = interpolated_tcp_peaks(trajectory, config.geometry)
+    limits = config.limits
+    for name, value, bound, unit in (('speed', speed, limits.max_speed, 'm/s'),
+                                     ('acceleration', accel, limits.max_accel, 'm/s^2')):
+        if value > bound * (1.0 + INTERPOLATION_SLACK):
+            raise LimitError(
+                f'interpolated TCP {name}: expected at most {bound:g} {unit} '
+                f'(+{INTERPOLATION_SLACK:.0%}), got {value:.4g} {unit}')
 
 
 def _hold(trajectory, seconds):

@@ -1,0 +1,133 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+"""The orchestration: from where the robot is, through the pick, to the place."""
+
+from ellipath_ros.core.errors import InvalidInputError, UnreachableError
+from ellipath_ros.core.joint_trajectory import quintic_interpolate, validate_jtc
+from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics
+from ellipath_ros.core.planner import (
+    CORE_DEFAULTS, INTERPOLATION_SLACK, interpolated_tcp_peaks, plan_cycle, plan_transfer,
+    PlannerConfig)
+import numpy as np
+import pytest
+
+HOME = np.array([0.0, 0.0, -0.8])
+PICK = np.array([-0.15, 0.1, -0.85])
+PLACE = np.array([0.15, 0.05, -0.8])
+
+
+def dense(trajectory, period=2e-4):
+    """Sample JTC's quintic interpolation of trajectory every period s."""
+    times = trajectory.time_from_start
+    t = np.linspace(times[0], times[-1], int((times[-1] - times[0]) / period) + 2)
+    return (t, *quintic_interpolate(trajectory, t))
+
+
+def test_defaults_are_the_design_defaults():
+    assert CORE_DEFAULTS['max_speed'] == 4.0 and CORE_DEFAULTS['max_accel'] == 50.0
+    assert CORE_DEFAULTS['max_jerk'] == 5000.0
+    assert CORE_DEFAULTS['max_joint_velocity'] == 10.0
+    assert CORE_DEFAULTS['max_joint_accel'] == 200.0
+    assert CORE_DEFAULTS['knot_tolerance'] == 1e-4
+    assert CORE_DEFAULTS['pick_clearance'] == CORE_DEFAULTS['place_clearance'] == 0.025
+    assert (CORE_DEFAULTS['base_radius'], CORE_DEFAULTS['effector_radius'],
+            CORE_DEFAULTS['upper_arm'], CORE_DEFAULTS['forearm']) == (0.2, 0.045, 0.35, 0.8)
+    assert CORE_DEFAULTS['arc_policy'] == 'paper'
+    assert CORE_DEFAULTS['profile'] == 'time_optimal'
+    assert CORE_DEFAULTS['joint_names'] == ['joint_1', 'joint_2', 'joint_3']
+
+
+def test_from_flat_rejects_unknown_and_invalid_values():
+    with pytest.raises(InvalidInputError, match='unknown max_sped'):
+        PlannerConfig.from_flat({'max_sped': 1.0})
+    with pytest.raises(InvalidInputError, match='max_joint_velocity: expected'):
+        PlannerConfig.from_flat({'max_joint_velocity': -1.0})
+    with pytest.raises(InvalidInputError, match='profile: expected one of'):
+        PlannerConfig.from_flat({'profile': 'fast'})
+    with pytest.raises(InvalidInputError, match='joint_names: expected 3 distinct'):
+        PlannerConfig.from_flat({'joint_names': ['a', 'a', 'b']})
+
+
+@pytest.mark.parametrize('profile', ['time_optimal', 'curvature'])
+def test_cycle_starts_where_the_robot_is_and_ends_at_the_place(profile):
+    config = PlannerConfig.from_flat({'profile': profile})
+    plan = plan_cycle(HOME, PICK, PLACE, config, pick_dwell=0.2, place_dwell=0.1)
+    trajectory = plan.joint_trajectory
+    validate_jtc(trajectory, config.joint_names)
+    np.testing.assert_allclose(trajectory.positions[0],
+                               inverse_kinematics(HOME, config.geometry), atol=1e-12)
+    np.testing.assert_allclose(trajectory.positions[-1],
+                               inverse_kinematics(PLACE, config.geometry), atol=1e-12)
+    assert np.abs(trajectory.velocities[[0, -1]]).max() == 0.0
+    assert len(plan.legs) == 2
+    t, q, qdot, qddot = dense(trajectory)
+    tcp = forward_kinematics(q, config.geometry)
+    # The interpolated motion passes through the pick and rests there for the dwell.
+    at_pick = np.linalg.norm(tcp - PICK, axis=1) < config.knot_tolerance
+    assert at_pick.any()
+    assert t[at_pick].max() - t[at_pick].min() >= 0.2 - 1e-3
+    assert np.abs(qdot).max() <= config.joint_limits.max_velocity
+    assert np.abs(qddot).max() <= config.joint_limits.max_acceleration
+    assert q.min() >= config.geometry.joint_min and q.max() <= config.geometry.joint_max
+    assert plan.metrics['duration'] == pytest.approx(trajectory.time_from_start[-1])
+
+
+def test_interpolated_tcp_motion_stays_near_the_plan_and_the_limits():
+    config = PlannerConfig()
+    leg = plan_transfer(PICK, PLACE, config)
+    t, q, _, _ = dense(leg.joint_trajectory)
+    planned = leg.motion.evaluate(t)[0]
+    deviation = np.linalg.norm(forward_kinematics(q, config.geometry) - planned, axis=1)
+    assert deviation.max() <= config.knot_tolerance
+    assert leg.max_interpolation_error <= config.knot_tolerance
+    speed, accel = interpolated_tcp_peaks(leg.joint_trajectory, config.geometry)
+    assert speed <= config.limits.max_speed * (1 + INTERPOLATION_SLACK)
+    assert accel <= config.limits.max_accel * (1 + INTERPOLATION_SLACK)
+
+
+def test_robot_already_at_the_pick_needs_no_approach():
+    plan = plan_cycle(PICK, PICK, PLACE)
+    assert len(plan.legs) == 1
+    assert 'approach.duration' not in plan.metrics
+
+
+def test_joint_acceleration_limit_slows_the_leg_down():
+    fast = plan_transfer(PICK, PLACE, PlannerConfig())
+    config = PlannerConfig.from_flat({'max_joint_accel': 50.0})
+    slow = plan_transfer(PICK, PLACE, config)
+    assert slow.joint_slowdown > 1.0 and slow.motion.duration > fast.motion.duration
+    _, _, _, qddot = dense(slow.joint_trajectory)
+    assert np.abs(qddot).max() <= 50.0
+
+
+def test_joint_velocity_limit_caps_the_path_speed():
+    config = PlannerConfig.from_flat({'max_joint_velocity': 3.0})
+    leg = plan_transfer(PICK, PLACE, config)
+    _, _, qdot, _ = dense(leg.joint_trajectory)
+    assert np.abs(qdot).max() <= 3.0
+
+
+def test_samples_output_has_one_point_per_period():
+    config = PlannerConfig.from_flat({'output_mode': 'samples', 'sample_period': 0.004})
+    leg = plan_transfer(PICK, PLACE, config)
+    steps = np.diff(leg.joint_trajectory.time_from_start)
+    assert np.allclose(steps[:-1], 0.004) and 0.0 < steps[-1] <= 0.004 + 1e-12
+    assert leg.max_interpolation_error < config.knot_tolerance
+
+
+def test_an_apex_out_of_reach_is_named():
+    with pytest.raises(UnreachableError, match='path point'):
+        plan_transfer([0.0, 0.0, -0.62], [0.3, 0.0, -0.62],
+                      PlannerConfig.from_flat({'arc_policy': 'apex_clearance',
+                                               'apex_clearance': 0.3}))
