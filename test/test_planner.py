@@ -17,7 +17,7 @@ from ellipath_ros.core.errors import InvalidInputError, UnreachableError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate, validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics
 from ellipath_ros.core.planner import (
-    CORE_DEFAULTS, INTERPOLATION_SLACK, interpolated_tcp_peaks, plan_cycle, plan_transfer,
+    CORE_DEFAULTS, interpolated_tcp_peaks, INTERPOLATION_SLACK, plan_cycle, plan_transfer,
     PlannerConfig)
 import numpy as np
 import pytest
