@@ -114,16 +114,23 @@ def _format_human(result):
     return '\n'.join(lines) + '\n'
 
 
+def _report_error(args, kind, message):
+    if args.json:
+        sys.stdout.write(json.dumps({'error': {'kind': kind, 'message': message}}) + '\n')
+    else:
+        sys.stderr.write(f'ellipath plan: {kind}: {message}\n')
+
+
 def _run_plan(args):
     try:
         result = plan_result(args)
     except EllipathError as error:
-        if args.json:
-            sys.stdout.write(json.dumps(
-                {'error': {'kind': error.kind, 'message': str(error)}}) + '\n')
-        else:
-            sys.stderr.write(f'ellipath plan: {error.kind}: {error}\n')
+        _report_error(args, error.kind, str(error))
         return 2
+    except (ArithmeticError, ValueError) as error:
+        # A bug, not a rejected input: say so in the same shape, with exit status 1.
+        _report_error(args, 'internal', f'{type(error).__name__}: {error}')
+        return 1
     if args.json:
         sys.stdout.write(json.dumps(_finite(result), allow_nan=False) + '\n')
     else:

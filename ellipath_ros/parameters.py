@@ -182,15 +182,16 @@ PARAMETER_TABLE = (
     _core('curvature_r', _DOUBLE, 'rad/m',
           "Gain r of the paper's profile: parameter step = r * radius of curvature "
           '(profile curvature)', low=0.0, high=1000.0),
-    _core('max_speed', _DOUBLE, 'm/s', 'TCP speed limit', low=0.0, high=100.0),
-    _core('max_accel', _DOUBLE, 'm/s^2', 'TCP acceleration norm limit', low=0.0, high=1.0e4),
-    _core('max_jerk', _DOUBLE, 'm/s^3', 'TCP jerk limit', low=0.0, high=1.0e7),
+    _core('max_speed', _DOUBLE, 'm/s', 'TCP speed limit', low=0.01, high=100.0),
+    _core('max_accel', _DOUBLE, 'm/s^2', 'TCP acceleration norm limit', low=0.1, high=1.0e4),
+    _core('max_jerk', _DOUBLE, 'm/s^3', 'TCP jerk limit', low=1.0, high=1.0e7),
     _core('max_accel_jump', _DOUBLE, 'm/s^2',
           'Largest normal acceleration jump allowed at the line-to-arc joins T1 and T2',
           low=0.0, high=1.0e4),
-    _core('max_joint_velocity', _DOUBLE, 'rad/s', 'Joint speed limit', low=0.0, high=1000.0),
+    _core('max_joint_velocity', _DOUBLE, 'rad/s', 'Joint speed limit', low=0.01,
+          high=1000.0),
     _core('max_joint_accel', _DOUBLE, 'rad/s^2', 'Joint acceleration limit',
-          low=0.0, high=1.0e5),
+          low=0.1, high=1.0e5),
     # Trajectory output.
     _core('output_mode', _STRING, '',
           'Trajectory points: knots = as few as knot_tolerance allows, samples = one every '

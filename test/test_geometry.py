@@ -234,3 +234,23 @@ def test_bad_inputs_are_rejected_with_the_value():
         ArcPolicy('lame')
     with pytest.raises(InvalidInputError, match='apex_clearance'):
         ArcPolicy('apex_clearance', apex_clearance=0.0)
+
+
+def test_tiny_horizontal_offsets_go_straight_to_the_place():
+    path = plan_path([0.0, 0.0, -0.8], [5e-4, 0.0, -0.7])
+    assert path.arc is None
+    ends = path.evaluate([0.0, path.length])
+    np.testing.assert_allclose(ends.position, [[0.0, 0.0, -0.8], [5e-4, 0.0, -0.7]],
+                               atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(ends.tangent, axis=1), 1.0)
+
+
+def test_needle_thin_arcs_are_rejected_with_a_remedy():
+    with pytest.raises(DegenerateGeometryError, match='smallest radius of curvature'):
+        plan_path([0.0, 0.0, -0.85], [0.0011, 0.0, -0.55],
+                  policy=ArcPolicy('apex_clearance', apex_clearance=0.025))
+
+
+def test_coordinates_beyond_any_workspace_are_rejected():
+    with pytest.raises(InvalidInputError, match=r'pick: expected coordinates within \+-10 m'):
+        plan_path([1e308, 0.0, -0.8], [0.1, 0.0, -0.8])

@@ -13,7 +13,7 @@
 # limitations under the License.
 """The orchestration: from where the robot is, through the pick, to the place."""
 
-from ellipath_ros.core.errors import InvalidInputError, UnreachableError
+from ellipath_ros.core.errors import InvalidInputError, LimitError, UnreachableError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate, validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics
 from ellipath_ros.core.planner import (
@@ -131,3 +131,22 @@ def test_an_apex_out_of_reach_is_named():
         plan_transfer([0.0, 0.0, -0.62], [0.3, 0.0, -0.62],
                       PlannerConfig.from_flat({'arc_policy': 'apex_clearance',
                                                'apex_clearance': 0.3}))
+
+
+@pytest.mark.parametrize('name, value', [('max_speed', 1e-9), ('max_jerk', 1e300),
+                                         ('max_accel', 0.0), ('max_joint_accel', 1e-6)])
+def test_limits_outside_their_practical_range_are_rejected(name, value):
+    with pytest.raises(InvalidInputError, match=f'{name}: expected a value in'):
+        PlannerConfig.from_flat({name: value})
+
+
+def test_a_leg_that_would_last_too_long_is_refused(monkeypatch):
+    from ellipath_ros.core import planner
+    monkeypatch.setattr(planner, 'MAX_LEG_DURATION', 0.05)
+    with pytest.raises(LimitError, match='leg duration: expected at most 0.05 s'):
+        plan_transfer(PICK, PLACE)
+
+
+def test_an_unreachable_place_is_named_as_the_place():
+    with pytest.raises(UnreachableError, match=r'^place\[0\]'):
+        plan_transfer(PICK, [5.0, 0.0, -0.8])

@@ -46,8 +46,13 @@ ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 # A critical angle closer than this below a whole degree makes the paper's
 # ellipse needle-thin (b -> 0); the paper's rule then takes the next degree.
 PAPER_MIN_MARGIN_DEG = 0.1
-# Horizontal distances below this are a pure vertical move (no arc).
-MIN_HORIZONTAL_DISTANCE = 1e-6
+# Horizontal distances below this are a straight move from pick to place (no arc): any
+# ellipse over so short a width is a needle whose corners no robot can follow.
+MIN_HORIZONTAL_DISTANCE = 1e-3
+# An arc whose smallest radius of curvature is below this is rejected (needle-thin ellipse).
+MIN_ARC_RADIUS = 5e-5
+# Coordinates beyond this are no robot's workspace (and would overflow the arithmetic).
+MAX_COORDINATE = 10.0
 # Pick and place closer than this are the same point: nothing to plan.
 MIN_MOVE_DISTANCE = 1e-6
 
@@ -437,9 +442,10 @@ class PickPlacePath:
     """
     The composite path: lift P1 -> T1, arc T1 -> T2, descent T2 -> P2 (base frame, m).
 
-    Build it with :func:`plan_path`. A pure vertical move (pick and place on
-    one vertical) has no arc: one straight segment, stored as the lift when
-    it goes up and as the descent when it goes down.
+    Build it with :func:`plan_path`. A straight move (pick and place less than
+    ``MIN_HORIZONTAL_DISTANCE`` apart horizontally) has no arc: one straight
+    segment from P1 to P2, stored as the lift when it rises (or stays level)
+    and as the descent when it goes down.
 
     Attributes
     ----------
@@ -511,6 +517,11 @@ class PickPlacePath:
         curvature = np.zeros((count, 3))
         rate = np.zeros((count, 3))
         s_t1, s_t2 = self.segment_ends[1], self.segment_ends[2]
+        if self.arc is None:
+            line = (self.place - self.pick) / self.length
+            position[:] = self.pick + s[:, None] * line
+            tangent[:] = line
+            return PathSamples(position, tangent, curvature, rate)
         up = np.array([0.0, 0.0, 1.0])
         lift = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
         position[lift] = self.pick + s[lift, None] * up
@@ -545,6 +556,15 @@ class PickPlacePath:
             out[mask] = value[:, :1] * self.direction + value[:, 1:2] * vertical
 
 
+def require_coordinates(name, point):
+    """Return ``point`` as a (3,) array of finite coordinates within +-MAX_COORDINATE m."""
+    point = require_point(name, point)
+    if np.abs(point).max() > MAX_COORDINATE:
+        raise InvalidInputError(
+            f'{name}: expected coordinates within +-{MAX_COORDINATE:g} m, got {point.tolist()}')
+    return point
+
+
 def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=None):
     """
     Build the composite path from pick P1 to place P2.
@@ -567,11 +587,12 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     InvalidInputError
         Non-finite coordinates or clearances out of range.
     DegenerateGeometryError
-        Pick and place coincide, or the arc policy admits no ellipse.
+        Pick and place coincide, or the arc policy admits no ellipse (or only a
+        needle-thin one).
 
     """
-    pick = require_point('pick', pick)
-    place = require_point('place', place)
+    pick = require_coordinates('pick', pick)
+    place = require_coordinates('place', place)
     c1 = require_range('pick_clearance', pick_clearance, 0.0, 1.0, unit='m')
     c2 = require_range('place_clearance', place_clearance, 0.0, 1.0, unit='m')
     policy = policy or ArcPolicy()
@@ -582,15 +603,22 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
             f'pick and place: expected points at least {MIN_MOVE_DISTANCE:g} m apart, '
             f'got {np.linalg.norm(offset):.3g} m (pick {pick.tolist()}, place {place.tolist()})')
     if horizontal < MIN_HORIZONTAL_DISTANCE:
-        # One vertical straight line: the clearances have nothing to clear.
-        rise = float(offset[2])
-        lengths = np.array([max(rise, 0.0), 0.0, max(-rise, 0.0)])
-        top = pick if rise < 0 else place
+        # One straight line: the object stays in the same column, no clearance to clear.
+        distance = float(np.linalg.norm(offset))
+        rises = offset[2] >= 0.0
+        lengths = np.array([distance, 0.0, 0.0] if rises else [0.0, 0.0, distance])
+        top = place if rises else pick
         return PickPlacePath(pick, place, top.copy(), top.copy(), None, np.zeros(3), lengths)
     up = np.array([0.0, 0.0, 1.0])
     tangent_1 = pick + c1 * up
     tangent_2 = place + c2 * up
     direction = np.array([offset[0], offset[1], 0.0]) / horizontal
     arc = arc_for_policy(0.5 * horizontal, 0.5 * float(tangent_2[2] - tangent_1[2]), policy)
+    if arc.min_radius < MIN_ARC_RADIUS:
+        raise DegenerateGeometryError(
+            f'arc ({policy.kind}): expected a smallest radius of curvature of at least '
+            f'{MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
+            f'ellipse for l = {arc.l:.4g} m, h = {arc.h:.4g} m); use the min_radius arc policy '
+            f'with a larger min_radius, or move pick and place further apart horizontally')
     lengths = np.array([c1, arc.length, c2])
     return PickPlacePath(pick, place, tangent_1, tangent_2, arc, direction, lengths)

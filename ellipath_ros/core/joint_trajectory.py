@@ -549,6 +549,10 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
 def _segment_count(times, errors, accept):
     """Estimate how many segments keep every error at ``accept``; see :func:`_equidistribute`."""
     total = np.sum(np.maximum(errors, 1e-300) ** (1.0 / 6.0))
+    if not math.isfinite(total):
+        raise InvalidInputError(
+            f'knots: expected finite interpolation errors, got {total} (motion out of reach '
+            'between samples?)')
     return max(1, math.ceil(total / accept ** (1.0 / 6.0)))
 
 

@@ -133,10 +133,9 @@ class JointLimits:
     def __post_init__(self):
         """Check that both limits are finite and positive, and store them as floats."""
         object.__setattr__(self, 'max_velocity', require_range(
-            'max_joint_velocity', self.max_velocity, 0.0, low_open=True, unit='rad/s'))
+            'max_joint_velocity', self.max_velocity, 0.01, 1000.0, unit='rad/s'))
         object.__setattr__(self, 'max_acceleration', require_range(
-            'max_joint_accel', self.max_acceleration, 0.0, low_open=True,
-            unit='rad/s^2'))
+            'max_joint_accel', self.max_acceleration, 0.1, 1e5, unit='rad/s^2'))
 
 
 def _unreachable(message, index):

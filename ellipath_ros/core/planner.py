@@ -29,7 +29,7 @@ import time
 import numpy as np
 
 from .errors import InvalidInputError, LimitError, require_point, require_range
-from .geometry import ArcPolicy, plan_path
+from .geometry import ArcPolicy, plan_path, require_coordinates
 from .joint_trajectory import (
     check_joint_limits, DEFAULT_JOINT_NAMES, JointTrajectoryData, minimal_knots,
     quintic_interpolate, sample_joint_trajectory, validate_jtc)
@@ -58,6 +58,9 @@ SLOWDOWN_STEP = 1.02
 INTERPOLATION_SLACK = 0.05
 KNOT_REFINEMENTS = 4
 KNOT_REFINEMENT_FACTOR = 3.0
+# A leg slower than this is refused before it is sampled (limits far too low, or the paper's
+# profile on a needle-thin arc): no pick-and-place cycle takes a minute.
+MAX_LEG_DURATION = 60.0
 # Start and pick closer than this: the robot is already at the pick, no approach leg.
 SAME_POINT = 1e-6
 
@@ -342,6 +345,9 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
 
     """
     config = config or PlannerConfig()
+    # The end points first, so an unreachable pick or place is named as such.
+    inverse_kinematics(require_coordinates('pick', pick), config.geometry, name='pick')
+    inverse_kinematics(require_coordinates('place', place), config.geometry, name='place')
     path = plan_path(
         pick, place,
         config.pick_clearance if pick_clearance is None else pick_clearance,
@@ -350,6 +356,11 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     cap = _speed_cap(path, config)
     timed = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
                         speed_cap=cap)
+    if timed.duration > MAX_LEG_DURATION:
+        raise LimitError(
+            f'leg duration: expected at most {MAX_LEG_DURATION:g} s, got {timed.duration:.4g} s '
+            f'({config.profile} profile on a {path.length:.4g} m path); raise the limits or '
+            f'choose another arc policy or profile')
     peak_velocity, peak_accel = _joint_peaks(timed, config)
     limits = config.joint_limits
     # Joint velocity is handled by the cap; joint acceleration (and any cap leak) by slowing

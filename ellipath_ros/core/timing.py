@@ -175,12 +175,14 @@ class CartesianLimits:
     max_accel_jump: float = 25.0
 
     def __post_init__(self):
-        for name, unit in (('max_speed', 'm/s'), ('max_accel', 'm/s^2'),
-                           ('max_jerk', 'm/s^3')):
+        # Practical ranges: beyond them a motion lasts hours or the arithmetic overflows.
+        for name, low, high, unit in (('max_speed', 0.01, 100.0, 'm/s'),
+                                      ('max_accel', 0.1, 1e4, 'm/s^2'),
+                                      ('max_jerk', 1.0, 1e7, 'm/s^3')):
             object.__setattr__(self, name, require_range(
-                name, getattr(self, name), 0.0, math.inf, low_open=True, unit=unit))
+                name, getattr(self, name), low, high, unit=unit))
         object.__setattr__(self, 'max_accel_jump', require_range(
-            'max_accel_jump', self.max_accel_jump, 0.0, math.inf, unit='m/s^2'))
+            'max_accel_jump', self.max_accel_jump, 0.0, 1e4, unit='m/s^2'))
 
 
 # -- laws: s(t) and its derivatives -----------------------------------------------------------
