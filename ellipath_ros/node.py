@@ -71,6 +71,7 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.executors import MultiThreadedExecutor
@@ -183,6 +184,7 @@ class EllipathNode(Node):
         self._serving = threading.Lock()
         self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
         self._last_end_position = None
+        self._busy_until = None  # node-clock time the last published trajectory ends
         self._status_name = f'{self.get_name()}: plan'
 
         depth = self._settings.queue_depth
@@ -301,10 +303,19 @@ class EllipathNode(Node):
         """Pair a place pose with its pick, plan, check and publish the trajectory."""
         pick = self._pairing.take_pick(message.header.stamp, settings.pairing)
         place = self._checked_position('place_pose', message, settings)
-        start, start_source = self._start_position(settings)
+        now = self.get_clock().now()
+        # While the last trajectory still runs, the robot is not where it will start: plan
+        # from that trajectory's end and stamp this one to start when it ends (JTC keeps
+        # executing the running trajectory until the new one's start time).
+        queued = self._busy_until is not None and self._busy_until > now
+        if queued:
+            start, start_source = self._last_end_position, 'last_trajectory'
+        else:
+            start, start_source = self._start_position(settings)
         plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
                           place_dwell=settings.place_dwell)
-        stamp = self.get_clock().now().to_msg() if settings.header_stamp == 'now' else Time()
+        start_time = self._busy_until if queued else self.get_clock().now()
+        stamp = start_time.to_msg() if queued or settings.header_stamp == 'now' else Time()
         trajectory = joint_trajectory_message(plan.joint_trajectory, settings.frame_id, stamp)
         # Check what is actually sent, after the conversion to whole nanoseconds.
         validate_jtc(joint_trajectory_data(trajectory),
@@ -312,9 +323,12 @@ class EllipathNode(Node):
         self._trajectory_publisher.publish(trajectory)
         latency = time.perf_counter() - received
         self._last_end_position = plan.end_position
+        # A zero stamp starts on receipt: the trajectory ends about its duration from now.
+        self._busy_until = start_time + Duration(seconds=plan.metrics['duration'])
 
         values = dict(plan.metrics)  # its plan_time is the planning latency
-        values.update(receive_to_publish_latency=latency, start_source=start_source)
+        values.update(receive_to_publish_latency=latency, start_source=start_source,
+                      queued_after_last_trajectory=str(queued).lower())
         self._publish_status(DiagnosticStatus.OK, 'planned', values)
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(plan, settings.frame_id, stamp))

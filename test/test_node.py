@@ -432,3 +432,20 @@ def test_invalid_start_up_parameters_raise(ros_context):
     with pytest.raises(EllipathError, match='joint'):
         EllipathNode(context=ros_context, parameter_overrides=[
             Parameter('joint_min', value=1.0), Parameter('joint_max', value=0.5)])
+
+
+def test_a_pair_arriving_while_the_robot_moves_is_queued_after_the_running_one(make_harness):
+    harness = make_harness()
+    first_status, first = harness.cycle(PICK, PLACE)
+    # Sent at once: the first trajectory (about 0.5 s) is still running.
+    status, second = harness.cycle(OTHER_PICK, PICK)
+    values = values_of(status)
+    assert values['start_source'] == 'last_trajectory'
+    assert values['queued_after_last_trajectory'] == 'true'
+    np.testing.assert_allclose(tcp_positions(second)[0], PLACE, atol=1e-9)
+    stamp = second.header.stamp.sec + 1e-9 * second.header.stamp.nanosec
+    assert stamp > 0.0, 'a queued trajectory carries its start time'
+    # The node expects the robot free when the second one ends: first end + second duration.
+    busy_until = harness.node._busy_until.nanoseconds * 1e-9
+    assert busy_until == pytest.approx(stamp + float(values['duration']), abs=1e-6)
+    assert float(values_of(first_status)['duration']) > 0.0
