@@ -186,20 +186,22 @@ def cell_pairs(cycles):
 
 
 def default_params_file():
-    """Return config/ellipath.yaml of the source tree or the installed share dir, or None."""
-    source = Path(__file__).resolve().parents[1] / 'config' / 'ellipath.yaml'
-    if source.is_file():
-        return source
+    """
+    Return config/ellipath.yaml of the source tree or the installed share dir, or None.
+
+    Looked up in the source tree, then through the ament index (a colcon install, or
+    AMENT_PREFIX_PATH), then under this Python's prefix (where ``pip install .`` puts it).
+    """
+    relative = Path('config') / 'ellipath.yaml'
+    candidates = [Path(__file__).resolve().parents[1] / relative]
     try:
         from ament_index_python.packages import get_package_share_directory
-        from ament_index_python.packages import PackageNotFoundError
-    except ImportError:  # rclpy from PyPI wheels may come without the ament index
-        return None
-    try:
-        installed = Path(get_package_share_directory('ellipath_ros')) / 'config' / 'ellipath.yaml'
-    except PackageNotFoundError:
-        return None
-    return installed if installed.is_file() else None
+        candidates.append(Path(get_package_share_directory('ellipath_ros')) / relative)
+    except (ImportError, LookupError, OSError):
+        # No ament index module, package not in the index, or AMENT_PREFIX_PATH unset.
+        pass
+    candidates.append(Path(sys.prefix) / 'share' / 'ellipath_ros' / relative)
+    return next((path for path in candidates if path.is_file()), None)
 
 
 @dataclass(frozen=True)
