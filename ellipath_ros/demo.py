@@ -185,6 +185,10 @@ def cell_pairs(cycles):
     return pairs, bad
 
 
+# Clock difference allowed between the node's stamps and this client's receipt times [s].
+STAMP_SLACK = 0.05
+
+
 def default_params_file():
     """
     Return config/ellipath.yaml of the source tree or the installed share dir, or None.
@@ -745,11 +749,13 @@ class _Cell:
         depth = settings.queue_depth
         self._pick_publisher = self.node.create_publisher(PoseStamped, 'pick_pose', depth)
         self._place_publisher = self.node.create_publisher(PoseStamped, 'place_pose', depth)
-        self._trajectories = []  # received messages
+        self._trajectories = []  # (message, wall-clock time of receipt)
+        self._busy_until = None  # wall-clock time the last received trajectory ends
         self._statuses = []  # (level, message, values) of the planner's statuses
         self._consumed = 0  # trajectories already handed out by exchange()
         self._trajectory_subscription = self.node.create_subscription(
-            JointTrajectory, 'joint_trajectory', self._trajectories.append, depth)
+            JointTrajectory, 'joint_trajectory',
+            lambda message: self._trajectories.append((message, time.time())), depth)
         # /diagnostics is shared by every node of the domain: keep a longer queue.
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                       100)
@@ -853,11 +859,12 @@ class _Cell:
         round_trip = time.perf_counter() - sent
         if rejected():
             self._spin_until(lambda: False, SETTLE)  # no trajectory may follow a rejection
-        trajectories = [self._read(message) for message in self._trajectories[self._consumed:]]
+        trajectories = [self._read(message, received)
+                        for message, received in self._trajectories[self._consumed:]]
         self._consumed = len(self._trajectories)
         return trajectories, self._statuses[first_status:], round_trip
 
-    def _read(self, message):
+    def _read(self, message, received):
         """Return (JointTrajectoryData or None, problems of the message) of a trajectory."""
         from ellipath_ros.conversions import joint_trajectory_data
 
@@ -865,9 +872,16 @@ class _Cell:
         if message.header.frame_id != self._settings.frame_id:
             problems.append(f'header.frame_id {message.header.frame_id!r}, expected '
                             f'{self._settings.frame_id!r}')
-        stamp = message.header.stamp
-        if self._settings.header_stamp == 'zero' and (stamp.sec or stamp.nanosec):
+        stamp = message.header.stamp.sec + 1e-9 * message.header.stamp.nanosec
+        running = self._busy_until is not None and received < self._busy_until - STAMP_SLACK
+        if running and abs(stamp - self._busy_until) > STAMP_SLACK:
+            problems.append(f'header.stamp {stamp:.3f} s while the last trajectory runs until '
+                            f'{self._busy_until:.3f} s: the robot would be cut short')
+        elif not running and self._settings.header_stamp == 'zero' and stamp:
             problems.append('header.stamp is not zero (JTC would not start it on receipt)')
+        if message.points:
+            last = message.points[-1].time_from_start
+            self._busy_until = ((stamp or received) + last.sec + 1e-9 * last.nanosec)
         if any(len(point.effort) for point in message.points):
             problems.append('effort entries (JTC rejects them without an effort interface)')
         try:
