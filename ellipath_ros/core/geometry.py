@@ -321,11 +321,6 @@ class EllipticArc:
         return np.array([self.l * math.cos(t_apex), math.hypot(self.h, self.k)])
 
     @property
-    def theta_apex(self):
-        """Return the paper's parameter of the apex [rad]."""
-        return math.atan2(self.k, self.h) + self.theta_T2
-
-    @property
     def apex_height(self):
         """Apex height above the lower tangent point [m] (the paper's reported H*)."""
         return math.hypot(self.h, self.k) + abs(self.h)
