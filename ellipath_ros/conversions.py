@@ -57,6 +57,12 @@ def pose_position(pose_stamped):
     return np.array([position.x, position.y, position.z], dtype=float)
 
 
+def pose_array_positions(pose_array):
+    """Return the positions of a geometry_msgs/PoseArray as a float array (N, 3) [m]."""
+    return np.array([[pose.position.x, pose.position.y, pose.position.z]
+                     for pose in pose_array.poses], dtype=float).reshape(-1, 3)
+
+
 def joint_positions_by_name(joint_state, joint_names):
     """
     Pick the positions of ``joint_names`` out of a sensor_msgs/JointState.
@@ -95,6 +101,11 @@ def duration_from_seconds(seconds):
 def seconds_from_duration(duration):
     """Return a builtin_interfaces/Duration as float seconds."""
     return duration.sec + duration.nanosec / _NANOSECONDS_PER_SECOND
+
+
+def seconds_from_time(stamp):
+    """Return a builtin_interfaces/Time as float seconds."""
+    return stamp.sec + stamp.nanosec / _NANOSECONDS_PER_SECOND
 
 
 def joint_trajectory_message(trajectory, frame_id, stamp):

@@ -13,36 +13,49 @@
 # limitations under the License.
 
 """
-``ellipath_node``: plans one pick-and-place cycle per pick/place pose pair.
+``ellipath_node``: plans one pick-and-place cycle per pick/place pair and sequences them.
 
 Interface (topic names are relative and remappable):
 
-* subscribes ``pick_pose`` and ``place_pose`` (geometry_msgs/PoseStamped) and, optionally,
-  ``joint_states`` (sensor_msgs/JointState);
+* subscribes ``pick_place`` (geometry_msgs/PoseArray holding exactly [pick, place], header
+  stamp the latch time, header frame the poses' frame), ``pick_pose`` and ``place_pose``
+  (geometry_msgs/PoseStamped) and, optionally, ``joint_states`` (sensor_msgs/JointState);
 * publishes ``joint_trajectory`` (trajectory_msgs/JointTrajectory, for ros2_control's
-  joint_trajectory_controller), ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, one status
-  per request) and ``~/path_markers`` (visualization_msgs/MarkerArray).
+  joint_trajectory_controller), ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, statuses
+  named ``<node>: plan``) and ``~/path_markers`` (visualization_msgs/MarkerArray);
+* serves ``~/clear_queue`` (std_srvs/Trigger): drops every pair waiting or held, never the
+  running trajectory.
 
 Only the position of a pose is used: the Delta robot has three translational degrees of
 freedom and its effector stays level, so the orientation is ignored. Poses must be in the
 ``frame_id`` frame (there is no tf2 lookup) and have finite coordinates.
 
-Pairing (parameter ``pairing``): ``sequence`` pairs a place with the pending pick, and a
-second pick before its place replaces the first; ``stamp`` pairs a place with the pick of
-identical ``header.stamp``, up to ``queue_depth`` picks waiting. A place with no pick is
-rejected. Either way a place consumes its pick, whether the pair is planned or rejected.
+Pairing of the two pose topics (parameter ``pairing``): ``stamp`` (default) pairs a place with
+the pick of identical ``header.stamp``, up to ``queue_depth`` picks waiting, so a message lost
+in transport never joins a place with another pick; ``sequence`` pairs a place with the
+pending pick. A place with no pick is rejected; a place consumes its pick either way.
+``pick_place`` needs no pairing.
 
-The motion starts where the robot is: the forward kinematics of the latest ``joint_states``
-(joints found by name) if it arrived within ``joint_state_timeout``, else the end of the last
-published trajectory, else ``home_position``.
+Sequencing (:mod:`ellipath_ros.core.sequencing`). Jazzy's joint_trajectory_controller
+replaces the running trajectory at its next control cycle whatever the new ``header.stamp``
+(src/joint_trajectory_controller.cpp ``update()``, lines 273-315) and splines from the
+measured state to the new first point (src/trajectory.cpp ``sample()``, lines 148-168), so a
+trajectory published while another runs cuts it short. The node therefore works in three
+stages: the subscription callbacks only validate, pair and queue (a full queue rejects the
+newest pair with a WARN status); a planning thread plans the queued pairs in arrival order,
+each from the end of the motion planned before it (or, when nothing runs, from the robot:
+fresh ``joint_states``, else the end of the last trajectory, else ``home_position``) and
+holds them; a release thread publishes each held trajectory once the one before it has
+ended (``controller_period`` after its latest start plus its duration). At release, a fresh
+joint state further than ``start_tolerance`` from the trajectory's start makes the node
+re-plan it from there, or drop it with an ERROR status.
 
-A rejected request publishes no trajectory, logs the reason at WARN and publishes an ERROR
-diagnostics status carrying it; the node keeps serving. Parameters can be changed at run time;
-every change is validated together with all the other current values, and an invalid change
-is refused with its reason while the previous configuration stays in force.
+Every rejection or drop publishes a status with its reason; the node keeps serving.
+Parameters can be changed at run time; every change is validated together with all the other
+current values, and an invalid change is refused with its reason while the previous
+configuration stays in force.
 """
 
-from collections import OrderedDict
 import sys
 import threading
 import time
@@ -56,7 +69,9 @@ from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.conversions import joint_trajectory_message
 from ellipath_ros.conversions import path_markers
+from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
+from ellipath_ros.conversions import seconds_from_time
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
@@ -64,9 +79,15 @@ from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import check_reachable
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.core.sequencing import check_start
+from ellipath_ros.core.sequencing import PlannedMotion
+from ellipath_ros.core.sequencing import PosePairing
+from ellipath_ros.core.sequencing import QueueFullError
+from ellipath_ros.core.sequencing import Sequencer
 from ellipath_ros.parameters import build_settings
 from ellipath_ros.parameters import PARAMETER_NAMES
 from ellipath_ros.parameters import PARAMETER_TABLE
+from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -79,79 +100,35 @@ from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
 NODE_NAME = 'ellipath_node'
 
-# Threads of the executor in main(): one per callback group (planning, joint states, and the
-# default group that serves the parameter services), so neither joint states nor parameter
-# requests wait behind a plan, and a plan waits for nothing but the GIL.
+# Threads of the executor in main(): one per callback group (intake, joint states, and the
+# default group that serves the parameter services and clear_queue). Planning and release
+# run in threads of their own, so intake never waits behind a plan.
 EXECUTOR_THREADS = 3
-# How long shutdown waits for a plan in progress before destroying the node [s].
+# How long shutdown waits for the planning and release threads [s].
 SHUTDOWN_WAIT = 2.0
+# How often a blocked worker thread looks whether the node stops [s].
+WORKER_POLL = 0.1
+# The interpreter's thread switch interval [s]: the release thread wakes at a trajectory's
+# end, but needs the GIL, which a planning thread in NumPy code keeps for up to the switch
+# interval (5 ms by default): 0.5 ms bounds that delay of the release.
+SWITCH_INTERVAL = 0.0005
 
 
-class UnpairedPlaceError(EllipathError):
-    """A place pose arrived with no pick pose to pair it with."""
+class OffTrajectoryError(EllipathError):
+    """The robot left the running trajectory and where it stopped is not known."""
 
-    kind = 'unpaired'
-
-
-class PosePairing:
-    """
-    Pick positions waiting for their place, at most ``depth`` of them.
-
-    Not thread-safe: the node uses it from one mutually exclusive callback group only.
-    Pending picks are dropped when the pairing mode changes.
-    """
-
-    def __init__(self):
-        self._pending = OrderedDict()
-        self._mode = 'sequence'
-
-    def __len__(self):
-        """Return the number of pending picks."""
-        return len(self._pending)
-
-    def _key(self, stamp, mode):
-        """Return the key pairing a pick and a place in ``mode``."""
-        if mode != self._mode:
-            self._pending.clear()
-            self._mode = mode
-        return None if mode == 'sequence' else (stamp.sec, stamp.nanosec)
-
-    def add_pick(self, stamp, position, mode, depth):
-        """Store a pick; return a warning if it displaced another pick, else None."""
-        key = self._key(stamp, mode)
-        warning = None
-        if key in self._pending:
-            del self._pending[key]
-            warning = ('pick_pose replaced the pending pick, which had no place_pose yet'
-                       if key is None else
-                       f'pick_pose replaced the pending pick of the same stamp {key}')
-        elif len(self._pending) >= depth:
-            dropped, _ = self._pending.popitem(last=False)
-            warning = (f'pick queue full ({depth} waiting): dropped the oldest pick '
-                       f'(stamp {dropped})')
-        self._pending[key] = position
-        return warning
-
-    def take_pick(self, stamp, mode):
-        """Remove and return the pick position paired with a place, or raise."""
-        key = self._key(stamp, mode)
-        try:
-            return self._pending.pop(key)
-        except KeyError:
-            wanted = 'a pending pick_pose' if key is None else f'a pick_pose with stamp {key}'
-            raise UnpairedPlaceError(
-                f'place_pose: expected {wanted} to pair with (pairing {mode}), got none'
-            ) from None
+    kind = 'off_trajectory'
 
 
 class EllipathNode(Node):
     """
-    ROS 2 node that turns pick/place pose pairs into joint trajectories.
+    ROS 2 node that turns pick/place pose pairs into joint trajectories, released in turn.
 
     Parameters
     ----------
@@ -179,50 +156,65 @@ class EllipathNode(Node):
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
+        depth = self._settings.queue_depth
         self._pairing = PosePairing()
-        # Held while a request is served, so shutdown can wait for a plan in progress.
-        self._serving = threading.Lock()
-        self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
+        self._sequencer = Sequencer(depth)
+        # (JointState, time.monotonic() at arrival); notified on every joint state.
+        self._joint_state_arrived = threading.Condition()
+        self._latest_joint_state = None
         self._last_end_position = None
-        self._busy_until = None  # node-clock time the last published trajectory ends
         self._status_name = f'{self.get_name()}: plan'
 
-        depth = self._settings.queue_depth
-        # Pick and place share one mutually exclusive group: their order is kept, the pairing
-        # state needs no lock and the plan runs in the place callback. Joint states have a
-        # group of their own so they are stored while a plan runs.
-        planning_group = MutuallyExclusiveCallbackGroup()
+        # The pose topics share one mutually exclusive group: their order is kept and the
+        # pairing state needs no lock. Joint states have a group of their own so they are
+        # stored while intake runs.
+        intake_group = MutuallyExclusiveCallbackGroup()
+        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place, depth,
+                                 callback_group=intake_group)
         self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, depth,
-                                 callback_group=planning_group)
+                                 callback_group=intake_group)
         self.create_subscription(PoseStamped, 'place_pose', self._on_place, depth,
-                                 callback_group=planning_group)
+                                 callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_service(Trigger, '~/clear_queue', self._on_clear_queue)
         self._trajectory_publisher = self.create_publisher(
             JointTrajectory, 'joint_trajectory', depth)
         self._diagnostics_publisher = self.create_publisher(
             DiagnosticArray, '/diagnostics', depth)
         self._marker_publisher = self.create_publisher(MarkerArray, '~/path_markers', depth)
 
+        self._workers = [threading.Thread(target=loop, name=f'{NODE_NAME}_{loop.__name__}')
+                         for loop in (self._planning_loop, self._release_loop)]
+        for worker in self._workers:
+            worker.start()
+
         planner = self._settings.planner
         self.get_logger().info(
             f'ready: poses in frame {self._settings.frame_id!r}, pairing '
-            f'{self._settings.pairing}, arc_policy {planner.arc.kind}, profile '
-            f'{planner.profile}, joints {list(planner.joint_names)}. Pose orientations are '
-            'ignored (3-DOF Delta robot: only the position is used).')
+            f'{self._settings.pairing}, header_stamp {self._settings.header_stamp}, '
+            f'queue_depth {depth}, arc_policy {planner.arc.kind}, profile {planner.profile}, '
+            f'joints {list(planner.joint_names)}. Pose orientations are ignored (3-DOF Delta '
+            'robot: only the position is used).')
 
-    def wait_until_idle(self, timeout):
-        """Wait up to ``timeout`` s for the request being served; return True if idle."""
-        if not self._serving.acquire(timeout=timeout):
-            return False
-        self._serving.release()
-        return True
+    def destroy_node(self):
+        """Stop the planning and release threads (waiting for a plan in progress), then destroy."""
+        self._sequencer.stop()
+        for worker in self._workers:
+            if worker is not threading.current_thread():
+                worker.join(SHUTDOWN_WAIT)
+        return super().destroy_node()
 
     @property
     def pending_pick_count(self):
         """Return the number of picks waiting for their place."""
         return len(self._pairing)
+
+    @property
+    def sequencer(self):
+        """Return the cycle queue (:class:`ellipath_ros.core.sequencing.Sequencer`)."""
+        return self._sequencer
 
     # --- parameters -----------------------------------------------------------------------
 
@@ -246,118 +238,315 @@ class EllipathNode(Node):
         changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
         self.get_logger().info(f'parameters changed: {changes}')
 
-    # --- subscriptions --------------------------------------------------------------------
+    # --- intake (subscription callbacks: validate, pair, queue; nothing slow) --------------
 
     def _on_joint_state(self, message):
         """Remember the latest joint state and when it arrived."""
-        self._latest_joint_state = (message, time.monotonic())
+        with self._joint_state_arrived:
+            self._latest_joint_state = (message, time.monotonic())
+            self._joint_state_arrived.notify_all()
 
     def _on_pick(self, message):
         """Store a valid pick pose until its place arrives."""
-        self._serve('pick_pose', self._handle_pick, message)
+        self._intake('pick_pose', self._take_pick, message)
 
     def _on_place(self, message):
-        """Plan and publish the cycle of a place pose and its pick."""
-        self._serve('place_pose', self._handle_place, message)
+        """Pair a place pose with its pick and queue the pair."""
+        self._intake('place_pose', self._take_place, message)
 
-    def _serve(self, topic, handler, message):
-        """Run ``handler`` and turn any failure into a rejection; the node keeps serving."""
-        received = time.perf_counter()
-        settings = self._settings  # one consistent snapshot for the whole request
+    def _on_pick_place(self, message):
+        """Queue the pair of a pick_place message."""
+        self._intake('pick_place', self._take_pick_place, message)
+
+    def _intake(self, topic, handler, message):
+        """Run ``handler``; turn any failure into a status. The node keeps serving."""
+        settings = self._settings  # one consistent snapshot for the whole message
         try:
-            with self._serving:
-                handler(message, settings, received)
+            handler(message, settings)
+        except QueueFullError as error:
+            self.get_logger().warn(f'{topic} rejected: {error}')
+            self._publish_status(DiagnosticStatus.WARN, str(error),
+                                 {'topic': topic, 'kind': error.kind,
+                                  **self._queue_values()})
         except EllipathError as error:
             self.get_logger().warn(f'{topic} rejected: {error}')
             self._publish_status(DiagnosticStatus.ERROR, str(error),
                                  {'topic': topic, 'kind': error.kind})
-        except Exception as error:  # a bug in one request must not stop the node
-            self.get_logger().error(
-                f'{topic}: unexpected {type(error).__name__}: {error}\n'
-                f'{traceback.format_exc()}')
-            self._publish_status(DiagnosticStatus.ERROR,
-                                 f'internal error: {type(error).__name__}: {error}',
-                                 {'topic': topic, 'kind': 'internal'})
+        except Exception as error:  # a bug in one message must not stop the node
+            self._report_internal(topic, error)
 
-    def _checked_position(self, topic, message, settings):
-        """Return the position of a pose in the base frame, or raise naming the problem."""
-        frame_id = message.header.frame_id
+    def _checked_frame(self, topic, frame_id, settings):
+        """Raise unless ``frame_id`` is the robot base frame."""
         if frame_id != settings.frame_id:
             raise InvalidInputError(
                 f'{topic}.header.frame_id: expected {settings.frame_id!r} (no tf2: poses must '
                 f'be in the robot base frame), got {frame_id!r}')
-        return require_point(f'{topic}.pose.position', pose_position(message))
 
-    def _handle_pick(self, message, settings, received):
-        """Validate a pick pose and queue it."""
-        position = self._checked_position('pick_pose', message, settings)
-        check_reachable(position, settings.planner.geometry, name='pick_pose.pose.position')
-        warning = self._pairing.add_pick(message.header.stamp, position, settings.pairing,
-                                         settings.queue_depth)
+    def _checked_point(self, name, position, settings):
+        """Return a finite, reachable position or raise naming the problem."""
+        position = require_point(name, position)
+        check_reachable(position, settings.planner.geometry, name=name)
+        return position
+
+    def _take_pick(self, message, settings):
+        """Validate a pick pose and keep it for its place."""
+        self._checked_frame('pick_pose', message.header.frame_id, settings)
+        position = self._checked_point('pick_pose.pose.position', pose_position(message),
+                                       settings)
+        warning = self._pairing.add_pick(_stamp_key(message.header.stamp), position,
+                                         settings.pairing, settings.queue_depth)
         if warning is not None:
             self.get_logger().warn(warning)
             self._publish_status(DiagnosticStatus.WARN, warning,
-                                 {'topic': 'pick_pose', 'pending_picks': len(self._pairing)})
+                                 {'topic': 'pick_pose', 'kind': 'pick_replaced',
+                                  'pending_picks': len(self._pairing)})
 
-    def _handle_place(self, message, settings, received):
-        """Pair a place pose with its pick, plan, check and publish the trajectory."""
-        pick = self._pairing.take_pick(message.header.stamp, settings.pairing)
-        place = self._checked_position('place_pose', message, settings)
-        now = self.get_clock().now()
-        # While the last trajectory still runs, the robot is not where it will start: plan
-        # from that trajectory's end and stamp this one to start when it ends (JTC keeps
-        # executing the running trajectory until the new one's start time).
-        queued = self._busy_until is not None and self._busy_until > now
-        if queued:
-            start, start_source = self._last_end_position, 'last_trajectory'
-        else:
-            start, start_source = self._start_position(settings)
-        plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
-                          place_dwell=settings.place_dwell)
-        start_time = self._busy_until if queued else self.get_clock().now()
-        stamp = start_time.to_msg() if queued or settings.header_stamp == 'now' else Time()
-        trajectory = joint_trajectory_message(plan.joint_trajectory, settings.frame_id, stamp)
-        # Check what is actually sent, after the conversion to whole nanoseconds.
-        validate_jtc(joint_trajectory_data(trajectory),
-                     expect_names=settings.planner.joint_names)
-        self._trajectory_publisher.publish(trajectory)
-        latency = time.perf_counter() - received
-        self._last_end_position = plan.end_position
-        # A zero stamp starts on receipt: the trajectory ends about its duration from now.
-        self._busy_until = start_time + Duration(seconds=plan.metrics['duration'])
+    def _take_place(self, message, settings):
+        """Pair a place pose with its pick and queue the pair."""
+        pick = self._pairing.take_pick(_stamp_key(message.header.stamp), settings.pairing)
+        self._checked_frame('place_pose', message.header.frame_id, settings)
+        place = self._checked_point('place_pose.pose.position', pose_position(message),
+                                    settings)
+        self._sequencer.submit(pick, place, 'place_pose')
 
-        values = dict(plan.metrics)  # its plan_time is the planning latency
-        values.update(receive_to_publish_latency=latency, start_source=start_source,
-                      queued_after_last_trajectory=str(queued).lower())
+    def _take_pick_place(self, message, settings):
+        """Validate a [pick, place] PoseArray and queue the pair."""
+        self._checked_frame('pick_place', message.header.frame_id, settings)
+        positions = pose_array_positions(message)
+        if len(positions) != 2:
+            raise InvalidInputError(
+                f'pick_place.poses: expected exactly 2 poses [pick, place], got '
+                f'{len(positions)}')
+        pick = self._checked_point('pick_place.poses[0].position', positions[0], settings)
+        place = self._checked_point('pick_place.poses[1].position', positions[1], settings)
+        self._sequencer.submit(pick, place, 'pick_place')
+
+    def _on_clear_queue(self, request, response):
+        """Drop every pair waiting or held; the running trajectory goes on."""
+        dropped = self._sequencer.clear()
+        response.success = True
+        response.message = (f'clear_queue: dropped {len(dropped)} pairs {dropped}; the '
+                            'running trajectory is not touched')
+        self.get_logger().info(response.message)
+        self._publish_status(DiagnosticStatus.WARN if dropped else DiagnosticStatus.OK,
+                             response.message,
+                             {'topic': 'clear_queue', 'kind': 'cleared',
+                              'dropped_pairs': ' '.join(map(str, dropped)),
+                              **self._queue_values()})
+        return response
+
+    # --- planning thread ------------------------------------------------------------------
+
+    def _planning_loop(self):
+        """Plan the queued pairs in arrival order until the node stops."""
+        while not self._sequencer.stopped:
+            taken = self._sequencer.next_to_plan(WORKER_POLL)
+            if taken is not None:
+                self._plan_queued(*taken)
+
+    def _plan_queued(self, request, start):
+        """Plan one queued pair from ``start`` (None: where the robot is) and hold it."""
+        settings = self._settings
+        try:
+            if start is None:
+                start, start_source = self._start_position(settings)
+            else:
+                start_source = 'queue_tail'
+            motion = self._plan(request, start, start_source, settings)
+        except EllipathError as error:
+            self._sequencer.plan_failed()
+            self.get_logger().warn(f'pair {request.number} ({request.topic}) rejected: {error}')
+            self._publish_status(DiagnosticStatus.ERROR, str(error), {
+                'topic': request.topic, 'kind': error.kind, 'pair': request.number,
+                **self._queue_values()})
+            return
+        except Exception as error:  # a bug in one plan must not stop the thread
+            self._sequencer.plan_failed()
+            self._report_internal(request.topic, error, pair=request.number)
+            return
+        # Reported before it is held, so that its 'released' status cannot come first.
+        values = {'topic': request.topic, 'pair': request.number,
+                  'start_source': start_source, 'plan_time': motion.plan_time,
+                  'receive_to_plan_latency': time.monotonic() - request.received}
+        values.update(motion.details['metrics'])
+        values.update(self._queue_values())
         self._publish_status(DiagnosticStatus.OK, 'planned', values)
-        if self._marker_publisher.get_subscription_count() > 0:
-            self._marker_publisher.publish(path_markers(plan, settings.frame_id, stamp))
-        self.get_logger().debug(
-            f'planned {len(trajectory.points)} points, receive to publish {latency * 1e3:.2f} ms')
+        # None if cleared while planned: the clear_queue status names it.
+        self._sequencer.plan_finished(motion)
+
+    def _plan(self, request, start, start_source, settings):
+        """Plan a pair from ``start``; return the PlannedMotion holding its message."""
+        started = time.perf_counter()
+        plan = plan_cycle(start, request.pick, request.place, settings.planner,
+                          pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
+        message = joint_trajectory_message(plan.joint_trajectory, settings.frame_id,
+                                           Time())
+        # Check what is actually sent, after the conversion to whole nanoseconds.
+        trajectory = joint_trajectory_data(message)
+        validate_jtc(trajectory, expect_names=settings.planner.joint_names)
+        return PlannedMotion(
+            request, trajectory, require_point('start', start), plan.end_position,
+            time.perf_counter() - started,
+            details={'message': message, 'plan': plan, 'metrics': plan.metrics,
+                     'start_source': start_source})
 
     def _start_position(self, settings):
-        """Return the TCP start of the next cycle and where it comes from."""
-        latest = self._latest_joint_state
-        if latest is not None:
-            joint_state, arrival = latest
-            if time.monotonic() - arrival <= settings.joint_state_timeout:
-                joints = joint_positions_by_name(joint_state, settings.planner.joint_names)
-                if joints is not None:
-                    position = forward_kinematics(joints, settings.planner.geometry,
-                                                  name='joint_states.position')
-                    return position, 'joint_states'
-                self.get_logger().warn(
-                    f'joint_states lacks a finite position of {list(settings.planner.joint_names)}'
-                    ': not used as the start', throttle_duration_sec=10.0)
+        """Return the TCP start of a cycle while the robot is at rest, and its source."""
+        measured = self._measured_tcp(settings)
+        if measured is not None:
+            return measured[0], 'joint_states'
         if self._last_end_position is not None:
             return self._last_end_position, 'last_trajectory'
         return settings.home_position, 'home_position'
 
+    def _measured_tcp(self, settings):
+        """Return (TCP, monotonic measurement time) of the latest fresh joint state, or None."""
+        latest = self._latest_joint_state
+        if latest is None:
+            return None
+        joint_state, arrival = latest
+        now = time.monotonic()
+        if now - arrival > settings.joint_state_timeout:
+            return None
+        joints = joint_positions_by_name(joint_state, settings.planner.joint_names)
+        if joints is None:
+            self.get_logger().warn(
+                f'joint_states lacks a finite position of {list(settings.planner.joint_names)}'
+                ': not used', throttle_duration_sec=10.0)
+            return None
+        stamp = seconds_from_time(joint_state.header.stamp)
+        # The stamp is the measurement time on the node clock; without one, the arrival.
+        measured_at = arrival if stamp == 0.0 else (
+            now - (self.get_clock().now().nanoseconds * 1e-9 - stamp))
+        position = forward_kinematics(joints, settings.planner.geometry,
+                                      name='joint_states.position')
+        return position, min(measured_at, arrival)
+
+    # --- release thread -------------------------------------------------------------------
+
+    def _release_loop(self):
+        """Publish each held trajectory once the one before it has ended, until the node stops."""
+        while not self._sequencer.stopped:
+            motion = self._sequencer.wait_for_release(WORKER_POLL)
+            if motion is not None:
+                self._release(motion)
+
+    def _release(self, motion):
+        """Check where the robot is, re-plan if needed, publish and report a held motion."""
+        settings = self._settings
+        request = motion.request
+        try:
+            motion, check = self._checked_start(motion, settings)
+        except EllipathError as error:
+            self._sequencer.release_failed()
+            reason = f'pair {request.number} dropped at release: {error}'
+            self.get_logger().error(reason)
+            self._publish_status(DiagnosticStatus.ERROR, reason, {
+                'topic': request.topic, 'kind': error.kind, 'pair': request.number,
+                **self._queue_values()})
+            return
+        except Exception as error:  # a bug in one release must not stop the thread
+            self._sequencer.release_failed()
+            self._report_internal(request.topic, error, pair=request.number)
+            return
+        message = motion.details['message']
+        if settings.header_stamp == 'ahead':
+            stamp = self.get_clock().now() + Duration(seconds=settings.release_lead)
+            message.header.stamp = stamp.to_msg()
+        published = time.monotonic()
+        self._trajectory_publisher.publish(message)
+        release = self._sequencer.released(motion, published, settings.header_stamp,
+                                           settings.controller_period, settings.release_lead)
+        self._last_end_position = motion.end_position
+        self._publish_status(DiagnosticStatus.OK, 'released',
+                             self._release_values(release, check))
+        if self._marker_publisher.get_subscription_count() > 0:
+            self._marker_publisher.publish(path_markers(
+                motion.details['plan'], settings.frame_id, message.header.stamp))
+
+    def _checked_start(self, motion, settings):
+        """Return (motion, StartCheck): the motion re-planned if the robot is elsewhere."""
+        geometry = settings.planner.geometry
+        last_release = self._sequencer.last_release
+        measured = self._measured_tcp(settings)
+        check = check_start(motion, last_release, *(measured or (None, 0.0)), geometry,
+                            settings.start_tolerance)
+        if check.action == 'wait':
+            measured = self._joint_state_after(last_release.latest_end, settings)
+            if measured is None:
+                raise OffTrajectoryError(
+                    f'joint_states: expected the robot on the running trajectory, got '
+                    f'{check.distance * 1e3:.2f} mm off it and no joint state measured after '
+                    f'its end within joint_state_timeout {settings.joint_state_timeout:g} s')
+            check = check_start(motion, last_release, *measured, geometry,
+                                settings.start_tolerance)
+        if check.action == 'replan':
+            self.get_logger().warn(
+                f'pair {motion.request.number}: the robot is {check.distance * 1e3:.2f} mm from '
+                f'the start of its trajectory ({check.basis}): re-planned from there')
+            motion = self._plan(motion.request, check.position, f'replanned_{check.basis}',
+                                settings)
+        return motion, check
+
+    def _joint_state_after(self, after, settings):
+        """Wait up to joint_state_timeout for a joint state measured after ``after``."""
+        deadline = time.monotonic() + settings.joint_state_timeout
+        with self._joint_state_arrived:
+            while True:
+                measured = self._measured_tcp(settings)
+                if measured is not None and measured[1] >= after:
+                    return measured
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0 or self._sequencer.stopped:
+                    return None
+                self._joint_state_arrived.wait(remaining)
+
+    # --- diagnostics ----------------------------------------------------------------------
+
+    def _queue_values(self):
+        """Return the queue length, the predicted end of the queue and the pair counters."""
+        now = time.monotonic()
+        values = {'queue_length': len(self._sequencer),
+                  'predicted_queue_end_in': self._sequencer.predicted_end(now) - now}
+        values.update((f'pairs_{name}', count)
+                      for name, count in self._sequencer.counts().items())
+        return values
+
+    def _release_values(self, release, check):
+        """Return the key/values of a release status."""
+        motion = release.motion
+        values = {'topic': motion.request.topic, 'pair': motion.request.number,
+                  'start_source': motion.details['start_source'],
+                  'start_check': check.basis,
+                  'start_distance': check.distance,
+                  'plan_time': motion.plan_time, 'duration': motion.duration,
+                  'receive_to_publish_latency': release.published - motion.request.received,
+                  'robot_waited_for_planner': str(release.waited_for_planner).lower()}
+        gap = release.predicted_gap()
+        if gap is not None:
+            values.update(release_delay=release.release_delay(),
+                          predicted_gap_min=gap[0], predicted_gap_max=gap[1])
+        values.update(self._queue_values())
+        return values
+
+    def _report_internal(self, topic, error, **values):
+        """Log an unexpected failure with its traceback and publish an ERROR status."""
+        self.get_logger().error(
+            f'{topic}: unexpected {type(error).__name__}: {error}\n{traceback.format_exc()}')
+        self._publish_status(DiagnosticStatus.ERROR,
+                             f'internal error: {type(error).__name__}: {error}',
+                             {'topic': topic, 'kind': 'internal', **values})
+
     def _publish_status(self, level, message, values):
-        """Publish one diagnostics status about the current request."""
+        """Publish one diagnostics status."""
         self._diagnostics_publisher.publish(diagnostic_array(
             self.get_clock().now().to_msg(), self._status_name,
             self.get_fully_qualified_name(), level, message, values))
+
+
+def _stamp_key(stamp):
+    """Return a builtin_interfaces/Time as the hashable pairing key (sec, nanosec)."""
+    return (stamp.sec, stamp.nanosec)
 
 
 def main(args=None):
@@ -370,9 +559,12 @@ def main(args=None):
         Command-line arguments (``--ros-args ...``); ``sys.argv`` if None.
 
     """
+    # The release thread must wake at a trajectory's end even while the planning thread runs
+    # NumPy code: see SWITCH_INTERVAL.
+    sys.setswitchinterval(SWITCH_INTERVAL)
     rclpy.init(args=args)
-    # Multi-threaded so that joint states and parameter services are served while a plan runs
-    # (see EXECUTOR_THREADS); plans themselves stay serialised by their callback group.
+    # Multi-threaded so that intake, joint states and the services are served concurrently
+    # (see EXECUTOR_THREADS); planning and release have threads of their own.
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     node = None
     exit_code = 0
@@ -388,8 +580,7 @@ def main(args=None):
     finally:
         executor.shutdown()
         if node is not None:
-            # The executor does not wait for callbacks still running in its threads.
-            node.wait_until_idle(SHUTDOWN_WAIT)
+            # Stops the planning and release threads, waiting for a plan in progress.
             node.destroy_node()
         rclpy.try_shutdown()
     return exit_code

@@ -35,6 +35,8 @@ from ellipath_ros.core.geometry import ARC_POLICIES
 from ellipath_ros.core.planner import CORE_DEFAULTS
 from ellipath_ros.core.planner import OUTPUT_MODES
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.sequencing import HEADER_STAMPS
+from ellipath_ros.core.sequencing import PAIRING_MODES
 from ellipath_ros.core.timing import PROFILES
 from rcl_interfaces.msg import FloatingPointRange
 from rcl_interfaces.msg import IntegerRange
@@ -136,15 +138,33 @@ PARAMETER_TABLE = (
           read_only=True),
     _core('joint_names', _STRING_ARRAY, '',
           'Actuator joint names of arms 0, 1, 2, in trajectory order', read_only=True),
-    _node('pairing', _STRING, 'sequence', '',
-          'How a place pose finds its pick: sequence = the pending pick, '
-          'stamp = the pick with the identical header.stamp', choices=('sequence', 'stamp')),
+    _node('pairing', _STRING, 'stamp', '',
+          'How a place_pose finds its pick_pose: stamp = the pick with the identical '
+          'header.stamp (a lost message never mis-pairs), sequence = the pending pick (a '
+          'lost place joins the next place with the wrong pick); pick_place pairs need '
+          'neither', choices=PAIRING_MODES),
     _node('queue_depth', _INTEGER, 10, '',
-          'Depth of the topic queues and most picks waiting for their place', low=1,
-          high=1000, read_only=True),
+          'Depth of the topic queues, most picks waiting for their place, and most pairs in '
+          'the cycle queue (waiting to be planned, being planned and held); when it is full '
+          'the newest pair is rejected with a WARN status', low=1, high=1000, read_only=True),
     _node('header_stamp', _STRING, 'zero', '',
-          'Trajectory header.stamp: zero = the controller starts it on receipt, now = the '
-          'node clock at publication', choices=('zero', 'now')),
+          "Trajectory header.stamp. Jazzy's joint_trajectory_controller replaces a running "
+          'trajectory at its next cycle whatever the stamp, so each trajectory is published '
+          'only once the one before it has ended. zero = start at the control cycle that '
+          'picks it up (within controller_period of publication); ahead = publication + '
+          'release_lead (the controller holds the robot still until then: an exactly known '
+          'start)', choices=HEADER_STAMPS),
+    _node('controller_period', _DOUBLE, 0.002, 's',
+          "The controller's update period: a zero-stamped trajectory starts at most this long "
+          'after publication, and the next one is released at that latest end', low=1e-4,
+          high=0.1),
+    _node('release_lead', _DOUBLE, 0.004, 's',
+          'header_stamp ahead: stamp = publication + this; must exceed transport plus one '
+          'controller period', low=0.0, high=1.0),
+    _node('start_tolerance', _DOUBLE, 0.001, 'm',
+          'At release, a held trajectory whose start is further than this from where the '
+          'robot is (fresh joint_states) is re-planned from there, or dropped', low=1e-5,
+          high=0.1),
     _node('pick_dwell', _DOUBLE, 0.0, 's', 'Pause at the pick point', low=0.0, high=10.0),
     _node('place_dwell', _DOUBLE, 0.0, 's', 'Pause at the place point', low=0.0, high=10.0),
     _node('home_position', _DOUBLE_ARRAY, [0.0, 0.0, -0.8], 'm',
@@ -223,11 +243,17 @@ class NodeSettings:
     frame_id : str
         Base frame of every pose and of the published trajectory.
     pairing : str
-        ``'sequence'`` or ``'stamp'``.
+        ``'stamp'`` or ``'sequence'``.
     queue_depth : int
-        Topic queue depth and most pending picks.
+        Topic queue depth, most pending picks and most pairs in the cycle queue.
     header_stamp : str
-        ``'zero'`` or ``'now'``.
+        ``'zero'`` or ``'ahead'``.
+    controller_period : float
+        The controller's update period [s].
+    release_lead : float
+        Stamp ahead of publication with ``header_stamp`` ahead [s].
+    start_tolerance : float
+        Largest distance between the robot and a released trajectory's start [m].
     pick_dwell, place_dwell : float
         Pauses at the pick and place points [s].
     home_position : tuple of float
@@ -242,6 +268,9 @@ class NodeSettings:
     pairing: str
     queue_depth: int
     header_stamp: str
+    controller_period: float
+    release_lead: float
+    start_tolerance: float
     pick_dwell: float
     place_dwell: float
     home_position: tuple

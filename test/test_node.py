@@ -23,6 +23,8 @@ import math
 import os
 from pathlib import Path
 import re
+import sys
+import threading
 import time
 
 from builtin_interfaces.msg import Time
@@ -40,10 +42,10 @@ from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.node import EllipathNode
-from ellipath_ros.node import PosePairing
-from ellipath_ros.node import UnpairedPlaceError
 from ellipath_ros.parameters import build_settings
 from ellipath_ros.parameters import parameter_defaults
+from geometry_msgs.msg import Pose
+from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 import numpy as np
 import pytest
@@ -51,6 +53,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker
 from visualization_msgs.msg import MarkerArray
@@ -100,25 +103,6 @@ def test_key_values_format_numbers_and_text():
         ('duration', '0.123456789'), ('count', '80'), ('policy', 'paper')]
 
 
-def test_pairing_in_sequence_and_stamp_modes():
-    pairing = PosePairing()
-    first, second = Time(sec=1), Time(sec=2)
-    assert pairing.add_pick(first, 'a', 'sequence', 10) is None
-    assert 'replaced' in pairing.add_pick(second, 'b', 'sequence', 10)
-    assert pairing.take_pick(first, 'sequence') == 'b'
-    with pytest.raises(UnpairedPlaceError, match='pick_pose'):
-        pairing.take_pick(first, 'sequence')
-    assert pairing.add_pick(first, 'a', 'stamp', 2) is None
-    assert pairing.add_pick(second, 'b', 'stamp', 2) is None
-    assert 'queue full' in pairing.add_pick(Time(sec=3), 'c', 'stamp', 2)
-    assert pairing.take_pick(second, 'stamp') == 'b'
-    with pytest.raises(UnpairedPlaceError, match='stamp'):
-        pairing.take_pick(first, 'stamp')  # dropped when the queue was full
-    assert len(pairing) == 1
-    pairing.add_pick(first, 'a', 'sequence', 2)  # a mode change drops what was pending
-    assert len(pairing) == 1
-
-
 # --- the node on a ROS graph ----------------------------------------------------------------
 
 def pose(position, frame_id='base_link', stamp=None):
@@ -150,8 +134,27 @@ def values_of(status):
     return {item.key: item.value for item in status.values}
 
 
+def pose_array(pick, place, frame_id='base_link', stamp=None):
+    """Return a pick_place PoseArray holding [pick, place]."""
+    message = PoseArray()
+    message.header.frame_id = frame_id
+    if stamp is not None:
+        message.header.stamp = stamp
+    for position in (pick, place):
+        item = Pose()
+        item.position.x, item.position.y, item.position.z = (float(value) for value in position)
+        item.orientation.w = 1.0
+        message.poses.append(item)
+    return message
+
+
 class Harness:
-    """An EllipathNode and a client node spun together by one executor."""
+    """
+    An EllipathNode and a client node spun together by one executor.
+
+    The trajectories are received by a listener node spun in a thread of its own, so their
+    receive times (``time.monotonic()``) are not delayed by the test's own spinning.
+    """
 
     def __init__(self, context, parameters=None, cli_args=None):
         overrides = [Parameter(name, value=value) for name, value in (parameters or {}).items()]
@@ -160,30 +163,46 @@ class Harness:
         self.client = Node('ellipath_test_client', context=context, namespace=NAMESPACE)
         self.pick_publisher = self.client.create_publisher(PoseStamped, 'pick_pose', 10)
         self.place_publisher = self.client.create_publisher(PoseStamped, 'place_pose', 10)
+        self.pick_place_publisher = self.client.create_publisher(PoseArray, 'pick_place', 100)
         self.joint_state_publisher = self.client.create_publisher(JointState, 'joint_states', 10)
-        self.trajectories, self.statuses, self.markers = [], [], []
-        self.client.create_subscription(JointTrajectory, 'joint_trajectory',
-                                        self.trajectories.append, 10)
+        self.clear_queue = self.client.create_client(Trigger, 'ellipath_node/clear_queue')
+        self.statuses, self.markers = [], []
+        self.received = []  # (time.monotonic() at receipt, JointTrajectory)
         self.client.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
-                                        10)
+                                        100)
         self.client.create_subscription(MarkerArray, 'ellipath_node/path_markers',
                                         self.markers.append, 10)
+        self.listener = Node('ellipath_test_listener', context=context, namespace=NAMESPACE)
+        self.listener.create_subscription(
+            JointTrajectory, 'joint_trajectory',
+            lambda message: self.received.append((time.monotonic(), message)), 100)
+        self.listener_executor = SingleThreadedExecutor(context=context)
+        self.listener_executor.add_node(self.listener)
+        self.listener_thread = threading.Thread(target=self.listener_executor.spin)
+        self.listener_thread.start()
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.client)
         # Both ends of every topic must have matched, or a first message may be dropped.
         topics = {f'{NAMESPACE}/{name}' for name in (
-            'pick_pose', 'place_pose', 'joint_states', 'joint_trajectory',
+            'pick_pose', 'place_pose', 'pick_place', 'joint_states', 'joint_trajectory',
             'ellipath_node/path_markers')} | {'/diagnostics'}
-        publishers = [publisher for node in (self.node, self.client)
+        nodes = (self.node, self.client, self.listener)
+        publishers = [publisher for node in nodes
                       for publisher in node.publishers if publisher.topic_name in topics]
-        subscriptions = [subscription for node in (self.node, self.client)
+        subscriptions = [subscription for node in nodes
                          for subscription in node.subscriptions
                          if subscription.topic_name in topics]
         assert len(publishers) == len(subscriptions) == len(topics)
         assert self.spin_until(lambda: (
             all(publisher.get_subscription_count() > 0 for publisher in publishers)
-            and all(subscription.get_publisher_count() > 0 for subscription in subscriptions)))
+            and all(subscription.get_publisher_count() > 0 for subscription in subscriptions)
+            and self.clear_queue.service_is_ready()))
+
+    @property
+    def trajectories(self):
+        """Return the trajectories received so far."""
+        return [message for _, message in self.received]
 
     def _on_diagnostics(self, message):
         """Keep the statuses of this harness's node (/diagnostics is shared)."""
@@ -192,10 +211,13 @@ class Harness:
                              if status.hardware_id == hardware_id)
 
     def close(self):
-        """Destroy both nodes and the executor."""
+        """Destroy the nodes and the executors."""
         self.executor.shutdown()
+        self.listener_executor.shutdown()
+        self.listener_thread.join()
         self.node.destroy_node()
         self.client.destroy_node()
+        self.listener.destroy_node()
 
     def spin_until(self, condition, timeout=TIMEOUT):
         """Spin until ``condition()`` holds; return whether it did within ``timeout``."""
@@ -210,6 +232,13 @@ class Harness:
         """Spin for ``duration`` seconds."""
         self.spin_until(lambda: False, timeout=duration)
 
+    def idle(self):
+        """Spin until the node holds nothing and no trajectory runs; return whether it did."""
+        sequencer = self.node.sequencer
+        return self.spin_until(lambda: (
+            sequencer.counts()['queued'] == 0 and sequencer.counts()['releasing'] == 0
+            and sequencer.running() is None))
+
     def send_pick(self, position, **pose_options):
         """Publish a pick and spin until the node has queued it or said something about it."""
         pending, statuses = self.node.pending_pick_count, len(self.statuses)
@@ -218,26 +247,49 @@ class Harness:
                                or len(self.statuses) > statuses)
 
     def send_place(self, position, **pose_options):
-        """Publish a place; return the node's diagnostics status and its trajectory or None."""
-        statuses, trajectories = len(self.statuses), len(self.trajectories)
+        """
+        Publish a place; return the node's first status about the pair, and its trajectory.
+
+        The status is 'planned' (then the trajectory and a 'released' status follow once the
+        robot is free) or the rejection; the trajectory is None when there is none.
+        """
+        statuses, trajectories = len(self.statuses), len(self.received)
         self.place_publisher.publish(pose(position, **pose_options))
+        return self._answer(statuses, trajectories)
+
+    def send_pair(self, pick, place, **pose_options):
+        """Publish a pick_place pair; return as :meth:`send_place` does."""
+        statuses, trajectories = len(self.statuses), len(self.received)
+        self.pick_place_publisher.publish(pose_array(pick, place, **pose_options))
+        return self._answer(statuses, trajectories)
+
+    def _answer(self, statuses, trajectories):
+        """Wait for the answer to one pair sent when there were ``statuses``, ``trajectories``."""
         assert self.spin_until(lambda: len(self.statuses) > statuses)
-        status = self.statuses[-1]
+        status = self.statuses[statuses]
         if status.level == DiagnosticStatus.OK:
-            assert self.spin_until(lambda: len(self.trajectories) > trajectories)
+            assert status.message == 'planned', status.message
+            assert self.spin_until(lambda: len(self.received) > trajectories and any(
+                later.message == 'released' for later in self.statuses[statuses:]))
         self.spin_for(SETTLE)
-        assert len(self.trajectories) - trajectories == (status.level == DiagnosticStatus.OK)
-        return status, self.trajectories[-1] if len(self.trajectories) > trajectories else None
+        assert len(self.received) - trajectories == (status.level == DiagnosticStatus.OK)
+        return status, self.trajectories[-1] if len(self.received) > trajectories else None
 
     def cycle(self, pick, place, **pose_options):
         """Send a pick and a place; return the status and trajectory of the place."""
         self.send_pick(pick, **pose_options)
         return self.send_place(place, **pose_options)
 
+    def released_statuses(self):
+        """Return the 'released' statuses received so far."""
+        return [status for status in self.statuses if status.message == 'released']
+
 
 @pytest.fixture
 def make_harness(ros_context):
-    """Return a factory of harnesses, closed after the test."""
+    """Return a factory of harnesses, closed after the test; switch interval as in main()."""
+    switch_interval = sys.getswitchinterval()
+    sys.setswitchinterval(node_module.SWITCH_INTERVAL)
     harnesses = []
 
     def make(parameters=None, cli_args=None):
@@ -248,6 +300,7 @@ def make_harness(ros_context):
     yield make
     for harness in harnesses:
         harness.close()
+    sys.setswitchinterval(switch_interval)
 
 
 def test_a_pair_gives_one_valid_trajectory_from_home_to_the_place(make_harness):
@@ -259,8 +312,17 @@ def test_a_pair_gives_one_valid_trajectory_from_home_to_the_place(make_harness):
     assert status.hardware_id == f'{NAMESPACE}/ellipath_node'
     values = values_of(status)
     assert values['start_source'] == 'home_position'
-    assert 0.0 < float(values['plan_time']) <= float(values['receive_to_publish_latency'])
+    assert 0.0 < float(values['plan_time']) <= float(values['receive_to_plan_latency'])
     assert int(values['n_points']) == len(trajectory.points)
+    (released,) = harness.released_statuses()
+    release = values_of(released)
+    assert release['pair'] == values['pair'] == '1'
+    assert float(release['receive_to_publish_latency']) >= float(values['plan_time'])
+    assert 'predicted_gap_min' not in release, 'no trajectory ran before'
+    counts = {key: int(value) for key, value in release.items() if key.startswith('pairs_')}
+    assert counts == {'pairs_received': 1, 'pairs_planned': 1, 'pairs_released': 1,
+                      'pairs_rejected': 0, 'pairs_dropped': 0, 'pairs_queued': 0,
+                      'pairs_held': 0, 'pairs_releasing': 0}
 
     assert trajectory.header.frame_id == 'base_link'
     assert (trajectory.header.stamp.sec, trajectory.header.stamp.nanosec) == (0, 0)
@@ -281,12 +343,15 @@ def test_a_pair_gives_one_valid_trajectory_from_home_to_the_place(make_harness):
 
 
 def test_the_next_cycle_starts_where_the_last_one_ended(make_harness):
-    harness = make_harness({'header_stamp': 'now'})
+    harness = make_harness({'header_stamp': 'ahead'})
+    before = harness.node.get_clock().now().nanoseconds
     harness.cycle(PICK, PLACE)
+    assert harness.idle()
     status, trajectory = harness.cycle(OTHER_PICK, PICK)
     assert values_of(status)['start_source'] == 'last_trajectory'
     np.testing.assert_allclose(tcp_positions(trajectory)[0], PLACE, atol=1e-9)
-    assert trajectory.header.stamp.sec > 0, 'header_stamp now'
+    stamp = trajectory.header.stamp.sec * 10**9 + trajectory.header.stamp.nanosec
+    assert stamp > before, 'header_stamp ahead: publication + release_lead'
 
 
 def test_the_cycle_starts_at_the_joint_states_while_they_are_fresh(make_harness):
@@ -351,7 +416,7 @@ def test_an_unexpected_failure_is_reported_and_the_node_keeps_serving(
 
 
 def test_a_second_pick_replaces_the_first(make_harness):
-    harness = make_harness()
+    harness = make_harness({'pairing': 'sequence'})
     harness.send_pick(PICK)
     harness.send_pick(OTHER_PICK)
     assert harness.statuses[-1].level == DiagnosticStatus.WARN
@@ -434,18 +499,22 @@ def test_invalid_start_up_parameters_raise(ros_context):
             Parameter('joint_min', value=1.0), Parameter('joint_max', value=0.5)])
 
 
-def test_a_pair_arriving_while_the_robot_moves_is_queued_after_the_running_one(make_harness):
+def test_a_pair_arriving_while_the_robot_moves_is_held_until_the_running_one_ends(
+        make_harness):
     harness = make_harness()
-    first_status, first = harness.cycle(PICK, PLACE)
+    _, first = harness.send_pair(PICK, PLACE)
     # Sent at once: the first trajectory (about 0.5 s) is still running.
-    status, second = harness.cycle(OTHER_PICK, PICK)
+    status, second = harness.send_pair(OTHER_PICK, PICK)
     values = values_of(status)
-    assert values['start_source'] == 'last_trajectory'
-    assert values['queued_after_last_trajectory'] == 'true'
+    assert values['start_source'] == 'queue_tail'
     np.testing.assert_allclose(tcp_positions(second)[0], PLACE, atol=1e-9)
-    stamp = second.header.stamp.sec + 1e-9 * second.header.stamp.nanosec
-    assert stamp > 0.0, 'a queued trajectory carries its start time'
-    # The node expects the robot free when the second one ends: first end + second duration.
-    busy_until = harness.node._busy_until.nanoseconds * 1e-9
-    assert busy_until == pytest.approx(stamp + float(values['duration']), abs=1e-6)
-    assert float(values_of(first_status)['duration']) > 0.0
+    assert (second.header.stamp.sec, second.header.stamp.nanosec) == (0, 0)
+    first_release, second_release = map(values_of, harness.released_statuses())
+    # Released only after the latest end of the first (its latest start plus its duration).
+    assert float(second_release['release_delay']) >= 0.0
+    assert float(second_release['predicted_gap_min']) >= 0.0
+    assert (float(second_release['predicted_gap_max'])
+            >= float(second_release['predicted_gap_min']))
+    assert float(first_release['duration']) == pytest.approx(
+        seconds_from_duration(first.points[-1].time_from_start))
+    assert second_release['robot_waited_for_planner'] == 'false'

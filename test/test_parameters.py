@@ -30,7 +30,8 @@ import yaml
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 NODE_KEYS = {'frame_id', 'pairing', 'pick_dwell', 'place_dwell', 'home_position',
-             'joint_state_timeout', 'header_stamp', 'queue_depth'}
+             'joint_state_timeout', 'header_stamp', 'queue_depth', 'controller_period',
+             'release_lead', 'start_tolerance'}
 
 
 def _yaml_parameters(name):
@@ -86,8 +87,10 @@ def test_read_only_parameters():
 def test_defaults_of_the_issue():
     defaults = parameter_defaults()
     assert defaults['frame_id'] == 'base_link'
-    assert defaults['pairing'] == 'sequence'
+    assert defaults['pairing'] == 'stamp'
     assert defaults['header_stamp'] == 'zero'
+    assert defaults['controller_period'] == 0.002
+    assert defaults['start_tolerance'] == 0.001
     assert defaults['home_position'] == [0.0, 0.0, -0.8]
     assert defaults['joint_state_timeout'] == 0.5
     assert defaults['queue_depth'] == 10
@@ -128,6 +131,10 @@ def test_defaults_build_valid_settings():
 @pytest.mark.parametrize('name, value, reason', [
     ('pairing', 'random', 'pairing'),
     ('header_stamp', 'later', 'header_stamp'),
+    ('header_stamp', 'now', 'header_stamp'),
+    ('controller_period', 0.0, 'controller_period'),
+    ('release_lead', -0.001, 'release_lead'),
+    ('start_tolerance', 0.0, 'start_tolerance'),
     ('home_position', [0.0, 0.0], 'home_position'),
     ('home_position', [0.0, math.nan, -0.8], 'home_position'),
     ('pick_dwell', -1.0, 'pick_dwell'),

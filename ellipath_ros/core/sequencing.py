@@ -1,0 +1,680 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sequencing of pick-and-place cycles for a controller that replaces its running trajectory.
+
+ros2_controllers' joint_trajectory_controller on Jazzy (branch ``jazzy``) replaces the
+running trajectory at the next control cycle after a new message arrives, whatever its
+``header.stamp`` (``JointTrajectoryController::update()``, src/joint_trajectory_controller.cpp
+lines 273-315). At the first sample of the new trajectory it takes the measured state
+(position, velocity if there is a velocity state interface, acceleration 0) and splines each
+joint from it straight to the first point, reached at ``stamp + time_from_start[0]``
+(``Trajectory::sample()``, src/trajectory.cpp lines 148-168); a zero stamp starts at that
+cycle. So a trajectory sent while another runs cuts the running one short. This module
+therefore keeps planned trajectories back and releases each only once the one before it has
+ended:
+
+* intake (:meth:`Sequencer.submit`, fast, called from subscription callbacks) puts a pair in a
+  bounded queue, or rejects the newest pair when the queue is full;
+* planning (:meth:`Sequencer.next_to_plan`, one worker) plans the pairs one by one in arrival
+  order, each from the end of the motion planned before it, and holds the result;
+* release (:meth:`Sequencer.wait_for_release`, one worker) hands the oldest held motion over
+  when the motion released before it has ended at the latest (see :class:`Release`).
+
+The class is thread-safe (one :class:`threading.Condition`) and ROS-free; its clock is
+injected so the logic is tested with a fake one. :class:`PosePairing` pairs picks and places
+arriving on separate topics.
+"""
+
+from collections import deque, OrderedDict
+from dataclasses import dataclass, field, replace
+import threading
+import time
+
+import numpy as np
+
+from .errors import EllipathError, InvalidInputError, require_range
+from .joint_trajectory import JointTrajectoryData, quintic_interpolate
+from .kinematics import forward_kinematics
+
+PAIRING_MODES = ('stamp', 'sequence')
+# zero: the controller starts the trajectory at the cycle that picks it up;
+# ahead: stamp = publication + release_lead, so the start is known exactly.
+HEADER_STAMPS = ('zero', 'ahead')
+# What the node did with pairs; see Sequencer.counts.
+COUNTERS = ('received', 'planned', 'released', 'rejected', 'dropped')
+# Samples of the running trajectory over the window of its uncertain start when a joint state
+# measured during it is compared with where it should be (0.06 ms apart for a 2 ms window).
+_TRACK_SAMPLES = 33
+
+
+class UnpairedPlaceError(EllipathError):
+    """A place pose arrived with no pick pose to pair it with."""
+
+    kind = 'unpaired'
+
+
+class QueueFullError(EllipathError):
+    """The cycle queue holds ``queue_depth`` pairs: the newest pair is rejected."""
+
+    kind = 'queue_full'
+
+
+class PosePairing:
+    """
+    Pick positions waiting for their place, at most ``depth`` of them.
+
+    In ``stamp`` mode a place pairs with the pick of identical stamp (any hashable key, the
+    node passes ``(sec, nanosec)``); a lost message then leaves an unpaired pick or place and
+    never joins a place with another pick. In ``sequence`` mode a place pairs with the
+    pending pick and a second pick replaces the first, which mis-pairs when a place is lost.
+    Not thread-safe: the node uses it from one mutually exclusive callback group only.
+    Pending picks are dropped when the pairing mode changes.
+    """
+
+    def __init__(self):
+        self._pending = OrderedDict()
+        self._mode = PAIRING_MODES[0]
+
+    def __len__(self):
+        """Return the number of pending picks."""
+        return len(self._pending)
+
+    def _key(self, stamp, mode):
+        """Return the key pairing a pick and a place in ``mode``."""
+        if mode != self._mode:
+            self._pending.clear()
+            self._mode = mode
+        return None if mode == 'sequence' else stamp
+
+    def add_pick(self, stamp, position, mode, depth):
+        """Store a pick; return a warning if it displaced another pick, else None."""
+        key = self._key(stamp, mode)
+        warning = None
+        if key in self._pending:
+            del self._pending[key]
+            warning = ('pick_pose replaced the pending pick, which had no place_pose yet'
+                       if key is None else
+                       f'pick_pose replaced the pending pick of the same stamp {key}')
+        elif len(self._pending) >= depth:
+            dropped, _ = self._pending.popitem(last=False)
+            warning = (f'pick queue full ({depth} waiting): dropped the oldest pick '
+                       f'(stamp {dropped})')
+        self._pending[key] = position
+        return warning
+
+    def take_pick(self, stamp, mode):
+        """Remove and return the pick position paired with a place, or raise."""
+        key = self._key(stamp, mode)
+        try:
+            return self._pending.pop(key)
+        except KeyError:
+            wanted = 'a pending pick_pose' if key is None else f'a pick_pose with stamp {key}'
+            raise UnpairedPlaceError(
+                f'place_pose: expected {wanted} to pair with (pairing {mode}), got none'
+            ) from None
+
+
+@dataclass(frozen=True)
+class PairRequest:
+    """
+    One pick/place pair taken in by the queue.
+
+    Attributes
+    ----------
+    number : int
+        Position in arrival order, from 1.
+    pick, place : numpy.ndarray
+        TCP positions [m], shape (3,).
+    received : float
+        Clock time of the intake [s].
+    topic : str
+        Where the pair came from (``place_pose`` or ``pick_place``), for statuses.
+
+    """
+
+    number: int
+    pick: np.ndarray
+    place: np.ndarray
+    received: float
+    topic: str
+
+
+@dataclass(frozen=True)
+class PlannedMotion:
+    """
+    A planned pair, held until its release.
+
+    Attributes
+    ----------
+    request : PairRequest
+        The pair.
+    trajectory : JointTrajectoryData
+        What will be published, first point at ``time_from_start`` 0.
+    start_position, end_position : numpy.ndarray
+        TCP at the first and the last point [m].
+    plan_time : float
+        Time spent planning [s].
+    ready : float or None
+        Clock time at which the plan was held (set by :meth:`Sequencer.plan_finished`).
+    details : dict
+        Anything the caller wants to keep with the motion (plan metrics).
+
+    """
+
+    request: PairRequest
+    trajectory: JointTrajectoryData
+    start_position: np.ndarray
+    end_position: np.ndarray
+    plan_time: float
+    ready: object = None
+    details: dict = field(default_factory=dict)
+
+    @property
+    def duration(self):
+        """Duration of the trajectory [s]."""
+        return self.trajectory.duration
+
+
+@dataclass(frozen=True)
+class Release:
+    """
+    A motion handed to the controller, and when it runs (clock times, s).
+
+    A zero-stamped trajectory published at ``published`` starts at the first control cycle
+    after it arrives: not before ``published`` and at the latest ``controller_period`` later
+    (transport on one host takes some tens of microseconds and is neglected). An ``ahead``
+    stamp starts exactly at the stamp. The next motion is released at ``latest_end``, so the
+    controller never replaces a running trajectory.
+
+    Attributes
+    ----------
+    motion : PlannedMotion
+        The motion.
+    published : float
+        Clock time of publication.
+    earliest_start, latest_start : float
+        Bounds of the start of the trajectory on the controller.
+    stamp : float or None
+        Clock time written as ``header.stamp`` (``ahead``), None for a zero stamp.
+    previous_end : float or None
+        Latest end of the motion released before it, None if there was none.
+    previous_earliest_end : float or None
+        Earliest end of the motion released before it, None if there was none.
+    waited_for_planner : bool
+        True when the plan was not ready by ``previous_end``: the robot waited for it.
+
+    """
+
+    motion: PlannedMotion
+    published: float
+    earliest_start: float
+    latest_start: float
+    stamp: object = None
+    previous_end: object = None
+    previous_earliest_end: object = None
+    waited_for_planner: bool = False
+
+    @property
+    def latest_end(self):
+        """Latest clock time at which the trajectory has ended [s]."""
+        return self.latest_start + self.motion.duration
+
+    @property
+    def earliest_end(self):
+        """Earliest clock time at which the trajectory ends [s]."""
+        return self.earliest_start + self.motion.duration
+
+    def release_delay(self):
+        """Return publication minus the latest end of the previous motion [s], or None."""
+        return None if self.previous_end is None else self.published - self.previous_end
+
+    def predicted_gap(self):
+        """
+        Return the bounds (low, high) of the idle time after the previous motion [s], or None.
+
+        A prediction from the publication times, not a measurement on the controller:
+        low = this earliest start - previous latest end, high = this latest start - previous
+        earliest end. Each start falls on a control cycle inside its window, so with a zero
+        stamp the idle time is within the bounds; with ``ahead`` stamps both are exact.
+        """
+        if self.previous_end is None:
+            return None
+        return (self.earliest_start - self.previous_end,
+                self.latest_start - self.previous_earliest_end)
+
+
+def release_timing(published, header_stamp, controller_period, release_lead):
+    """
+    Return (earliest start, latest start, stamp) of a trajectory published at ``published``.
+
+    Parameters
+    ----------
+    published : float
+        Clock time of publication [s].
+    header_stamp : str
+        ``'zero'`` (start at the cycle that picks it up) or ``'ahead'``.
+    controller_period : float
+        The controller's update period [s].
+    release_lead : float
+        Stamp ahead of the publication in ``'ahead'`` mode [s]; it must exceed transport plus
+        one controller period, or the controller starts the trajectory late, mid-motion.
+
+    """
+    if header_stamp == 'ahead':
+        stamp = published + release_lead
+        return stamp, stamp, stamp
+    if header_stamp != 'zero':
+        raise InvalidInputError(
+            f'header_stamp: expected one of {", ".join(HEADER_STAMPS)}, got {header_stamp!r}')
+    return published, published + controller_period, None
+
+
+class Sequencer:
+    """
+    The cycle queue: pairs waiting to be planned, planned motions held, and the release.
+
+    Parameters
+    ----------
+    depth : int
+        Most pairs in the queue (waiting, being planned and held together), >= 1.
+    clock : callable, optional
+        Returns the current time [s]; :func:`time.monotonic` by default. Blocking waits use
+        real time whatever the clock, so tests with a fake clock use the non-blocking calls.
+
+    """
+
+    def __init__(self, depth, clock=time.monotonic):
+        self.depth = int(require_range('queue_depth', depth, 1, 10**6))
+        self.clock = clock
+        self._condition = threading.Condition()
+        self._waiting = deque()
+        self._planning = None  # the request being planned
+        self._planning_cancelled = False
+        self._held = deque()
+        self._releasing = None  # the motion taken by the release worker, not yet published
+        self._last_release = None
+        self._numbers = 0
+        self._stopped = False
+        self._counts = dict.fromkeys(COUNTERS, 0)
+
+    # --- state ------------------------------------------------------------------------------
+
+    def __len__(self):
+        """Return the queue length: pairs waiting, being planned or held."""
+        with self._condition:
+            return self._length()
+
+    def _length(self):
+        """Return the queue length; the lock is held."""
+        return len(self._waiting) + (self._planning is not None) + len(self._held)
+
+    @property
+    def stopped(self):
+        """Return True once :meth:`stop` was called."""
+        with self._condition:
+            return self._stopped
+
+    @property
+    def last_release(self):
+        """Return the latest :class:`Release`, or None."""
+        with self._condition:
+            return self._last_release
+
+    def counts(self):
+        """
+        Return what happened to every pair so far, as a dict.
+
+        ``received`` = ``released`` + ``rejected`` + ``dropped`` + ``queued`` (waiting, being
+        planned or held) + ``releasing`` (taken for release, being checked and published).
+        ``planned`` counts successful plans (a pair re-planned at release counts once).
+        """
+        with self._condition:
+            counts = dict(self._counts)
+            counts.update(queued=self._length(), held=len(self._held),
+                          releasing=int(self._releasing is not None))
+        return counts
+
+    def running(self, now=None):
+        """Return the last release if its trajectory may still run at ``now``, else None."""
+        now = self.clock() if now is None else now
+        with self._condition:
+            last = self._last_release
+        return last if last is not None and now < last.latest_end else None
+
+    def predicted_end(self, now=None):
+        """
+        Return the latest clock time at which every held motion has ended [s].
+
+        Held motions run back to back after the running one; pairs not yet planned are not
+        counted (their duration is unknown). ``now`` if nothing runs or is held.
+        """
+        now = self.clock() if now is None else now
+        with self._condition:
+            end = now
+            if self._last_release is not None:
+                end = max(end, self._last_release.latest_end)
+            return end + sum(motion.duration for motion in self._held)
+
+    # --- intake -----------------------------------------------------------------------------
+
+    def submit(self, pick, place, topic):
+        """
+        Take a pair into the queue and return its :class:`PairRequest`.
+
+        Raises
+        ------
+        QueueFullError
+            The queue holds ``depth`` pairs; the pair is counted as received and rejected.
+
+        """
+        with self._condition:
+            self._numbers += 1
+            self._counts['received'] += 1
+            if self._length() >= self.depth:
+                self._counts['rejected'] += 1
+                raise QueueFullError(
+                    f'pair {self._numbers}: expected room in the cycle queue, got '
+                    f'{self._length()} pairs queued (queue_depth {self.depth}): the newest '
+                    'pair is rejected')
+            request = PairRequest(self._numbers, np.array(pick, dtype=float),
+                                  np.array(place, dtype=float), self.clock(), topic)
+            self._waiting.append(request)
+            self._condition.notify_all()
+            return request
+
+    # --- planning ---------------------------------------------------------------------------
+
+    def take_for_planning(self, now=None):
+        """
+        Take the oldest waiting pair for planning, without blocking.
+
+        Returns
+        -------
+        tuple or None
+            (request, start) where start is the TCP [m] at which the motion must begin (the
+            end of the last held motion, else of the running one) or None when the robot is
+            at rest and the caller must find out where; None when nothing waits.
+
+        """
+        now = self.clock() if now is None else now
+        with self._condition:
+            if not self._waiting or self._planning is not None:
+                return None
+            request = self._waiting.popleft()
+            self._planning, self._planning_cancelled = request, False
+            if self._held:
+                start = self._held[-1].end_position
+            elif self._releasing is not None:
+                start = self._releasing.end_position
+            elif self._last_release is not None and now < self._last_release.latest_end:
+                start = self._last_release.motion.end_position
+            else:
+                start = None
+            return request, start
+
+    def next_to_plan(self, timeout):
+        """Block up to ``timeout`` s for :meth:`take_for_planning`; None on timeout or stop."""
+        deadline = time.monotonic() + timeout
+        with self._condition:
+            while not self._stopped:
+                taken = self.take_for_planning()
+                if taken is not None:
+                    return taken
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0:
+                    return None
+                self._condition.wait(remaining)
+        return None
+
+    def plan_finished(self, motion):
+        """
+        Hold a planned motion; return it as held (with ``ready`` set).
+
+        Returns None, and counts the pair as dropped, when the queue was cleared (or the
+        sequencer stopped) while it was planned.
+        """
+        with self._condition:
+            self._planning = None
+            self._counts['planned'] += 1
+            if self._planning_cancelled or self._stopped:
+                self._counts['dropped'] += 1
+                self._condition.notify_all()
+                return None
+            held = replace(motion, ready=self.clock())
+            self._held.append(held)
+            self._condition.notify_all()
+            return held
+
+    def plan_failed(self):
+        """Count the pair being planned as rejected (its plan failed)."""
+        with self._condition:
+            self._planning = None
+            self._counts['rejected'] += 1
+            self._condition.notify_all()
+
+    # --- release ----------------------------------------------------------------------------
+
+    def due(self, now):
+        """Return the clock time at which the oldest held motion may be released, or None."""
+        with self._condition:
+            if not self._held or self._releasing is not None:
+                return None
+            last = self._last_release
+            return now if last is None else max(now, last.latest_end)
+
+    def take_for_release(self, now=None):
+        """Take the oldest held motion if it is due at ``now``, without blocking; else None."""
+        now = self.clock() if now is None else now
+        with self._condition:
+            due = self.due(now)
+            if due is None or due > now:
+                return None
+            self._releasing = self._held.popleft()
+            return self._releasing
+
+    def wait_for_release(self, timeout):
+        """
+        Block until the oldest held motion is due and take it; None on timeout or stop.
+
+        The wait ends at the motion's due time on ``clock`` (``time.monotonic`` in the node);
+        the caller then checks where the robot is, publishes, and reports
+        :meth:`released` or :meth:`release_failed`.
+        """
+        deadline = time.monotonic() + timeout
+        with self._condition:
+            while not self._stopped:
+                now = self.clock()
+                motion = self.take_for_release(now)
+                if motion is not None:
+                    return motion
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0:
+                    return None
+                due = self.due(now)
+                self._condition.wait(remaining if due is None else min(remaining, due - now))
+        return None
+
+    def released(self, motion, published, header_stamp='zero', controller_period=0.002,
+                 release_lead=0.004):
+        """
+        Record that ``motion`` (taken for release) was published at ``published``.
+
+        Returns
+        -------
+        Release
+            Its timing (see :func:`release_timing`) and its relation to the previous motion.
+
+        """
+        earliest, latest, stamp = release_timing(published, header_stamp, controller_period,
+                                                 release_lead)
+        with self._condition:
+            previous = self._last_release
+            previous_end = None if previous is None else previous.latest_end
+            release = Release(
+                motion, published, earliest, latest, stamp, previous_end,
+                None if previous is None else previous.earliest_end,
+                waited_for_planner=(previous_end is not None and motion.ready is not None
+                                    and motion.request.received < previous_end < motion.ready))
+            self._last_release = release
+            self._releasing = None
+            self._counts['released'] += 1
+            self._condition.notify_all()
+            return release
+
+    def release_failed(self):
+        """Count the motion taken for release as dropped (it could not be published)."""
+        with self._condition:
+            self._releasing = None
+            self._counts['dropped'] += 1
+            self._condition.notify_all()
+
+    # --- clearing and stopping --------------------------------------------------------------
+
+    def clear(self):
+        """
+        Drop every pair waiting, being planned or held; never the running trajectory.
+
+        Returns
+        -------
+        list of int
+            The numbers of the dropped pairs, in arrival order.
+
+        """
+        with self._condition:
+            dropped = [request.number for request in self._waiting]
+            dropped += [motion.request.number for motion in self._held]
+            self._counts['dropped'] += len(self._waiting) + len(self._held)
+            self._waiting.clear()
+            self._held.clear()
+            if self._planning is not None and not self._planning_cancelled:
+                # Counted as dropped when its plan ends (plan_finished) or as rejected if it
+                # fails: either way once.
+                self._planning_cancelled = True
+                dropped.append(self._planning.number)
+            self._condition.notify_all()
+            return sorted(dropped)
+
+    def stop(self):
+        """Wake every blocked worker and make them return None from now on."""
+        with self._condition:
+            self._stopped = True
+            self._condition.notify_all()
+
+
+def track_deviation(release, measured, measured_at, geometry):
+    """
+    Return how far a measured TCP is from where the released motion puts the robot [m].
+
+    Parameters
+    ----------
+    release : Release
+        The last released motion.
+    measured : numpy.ndarray
+        TCP from the forward kinematics of a joint state [m], shape (3,).
+    measured_at : float
+        Clock time at which the joint state was measured (its stamp) [s].
+    geometry : ellipath_ros.core.kinematics.DeltaGeometry
+        Robot dimensions.
+
+    Returns
+    -------
+    float
+        Distance to the TCP of the motion at ``measured_at``; with a zero stamp the start is
+        only known within [earliest_start, latest_start], and the smallest distance over that
+        window is returned, so a joint state a few milliseconds old or a robot still a little
+        short of the end near the stop does not count as a deviation. Before the earliest
+        start the robot stands at the first point; after the latest end, at the last.
+
+    """
+    trajectory = release.motion.trajectory
+    offsets = measured_at - np.linspace(release.earliest_start, release.latest_start,
+                                        _TRACK_SAMPLES)
+    offsets = np.clip(offsets, 0.0, trajectory.duration)
+    expected = forward_kinematics(quintic_interpolate(trajectory, offsets)[0], geometry)
+    return float(np.min(np.linalg.norm(expected - measured, axis=1)))
+
+
+@dataclass(frozen=True)
+class StartCheck:
+    """
+    Where the robot is when a held motion is released, and what to do about it.
+
+    Attributes
+    ----------
+    action : str
+        ``'publish'`` (the motion starts where the robot is), ``'replan'`` (re-plan it from
+        ``position``) or ``'wait'`` (a joint state shows the robot off the running
+        trajectory: wait for one measured after its end).
+    position : numpy.ndarray or None
+        Where the robot is [m] (``'replan'``), else None.
+    distance : float
+        Distance between the motion's start and the robot [m] (``'publish'``,
+        ``'replan'``), or between the robot and the running trajectory (``'wait'``).
+    basis : str
+        What the robot position comes from: ``joint_states``, ``joint_states_on_track``
+        (measured during the last motion and on it: the robot will be at its end),
+        ``last_trajectory`` (no fresh joint state: the end of the last motion) or ``plan``
+        (nothing known but what the plan started from).
+
+    """
+
+    action: str
+    position: object
+    distance: float
+    basis: str
+
+
+def check_start(motion, last_release, measured, measured_at, geometry, tolerance):
+    """
+    Decide whether a held motion starts where the robot is, at its release.
+
+    Parameters
+    ----------
+    motion : PlannedMotion
+        The motion about to be released.
+    last_release : Release or None
+        The motion released before it.
+    measured : numpy.ndarray or None
+        TCP of the latest fresh joint state [m], or None if there is none.
+    measured_at : float
+        Clock time at which it was measured [s] (ignored when ``measured`` is None).
+    geometry : ellipath_ros.core.kinematics.DeltaGeometry
+        Robot dimensions.
+    tolerance : float
+        Largest distance accepted between the robot and the motion's start [m].
+
+    Returns
+    -------
+    StartCheck
+
+    """
+    if measured is not None and (last_release is None or measured_at >= last_release.latest_end):
+        robot, basis = np.asarray(measured, dtype=float), 'joint_states'
+    elif last_release is None:
+        return StartCheck('publish', None, 0.0, 'plan')
+    else:
+        if measured is not None:
+            # Measured while the last motion may still run: it can only say whether the robot
+            # follows that motion (then it will stop at its end), not where it will stop.
+            deviation = track_deviation(last_release, measured, measured_at, geometry)
+            if deviation > tolerance:
+                return StartCheck('wait', None, deviation, 'joint_states')
+        robot = last_release.motion.end_position
+        basis = 'last_trajectory' if measured is None else 'joint_states_on_track'
+    distance = float(np.linalg.norm(motion.start_position - robot))
+    if distance > tolerance:
+        return StartCheck('replan', robot, distance, basis)
+    return StartCheck('publish', None, distance, basis)

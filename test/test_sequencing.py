@@ -1,0 +1,336 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The cycle queue, the release timing, the start check and the pairing, without ROS."""
+
+import threading
+import time
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.joint_trajectory import JointTrajectoryData
+from ellipath_ros.core.joint_trajectory import quintic_interpolate
+from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.sequencing import check_start
+from ellipath_ros.core.sequencing import PlannedMotion
+from ellipath_ros.core.sequencing import PosePairing
+from ellipath_ros.core.sequencing import QueueFullError
+from ellipath_ros.core.sequencing import release_timing
+from ellipath_ros.core.sequencing import Sequencer
+from ellipath_ros.core.sequencing import track_deviation
+from ellipath_ros.core.sequencing import UnpairedPlaceError
+import numpy as np
+import pytest
+
+CONFIG = PlannerConfig()
+HOME = np.array([0.0, 0.0, -0.8])
+PICK = np.array([0.10, 0.05, -0.85])
+PLACE = np.array([-0.15, -0.10, -0.82])
+PERIOD = 0.002
+
+
+class FakeClock:
+    """A clock that moves only when told."""
+
+    def __init__(self):
+        self.now = 100.0
+
+    def __call__(self):
+        return self.now
+
+
+def motion_of(request, start, duration=0.5):
+    """Return a PlannedMotion of ``request``: two points from ``start`` to its place."""
+    trajectory = JointTrajectoryData(
+        ('joint_1', 'joint_2', 'joint_3'), [0.0, duration],
+        inverse_kinematics(np.array([start, request.place]), CONFIG.geometry),
+        np.zeros((2, 3)), np.zeros((2, 3)))
+    return PlannedMotion(request, trajectory, np.asarray(start, dtype=float), request.place,
+                         plan_time=0.01)
+
+
+def added_up(counts):
+    """Return whether every pair received is accounted for exactly once."""
+    return counts['received'] == (counts['released'] + counts['rejected'] + counts['dropped']
+                                  + counts['queued'] + counts['releasing'])
+
+
+@pytest.fixture
+def clock():
+    return FakeClock()
+
+
+@pytest.fixture
+def sequencer(clock):
+    return Sequencer(3, clock=clock)
+
+
+def plan_next(sequencer, duration=0.5):
+    """Plan the oldest waiting pair the way the node does; return (request, start)."""
+    request, start = sequencer.take_for_planning()
+    begin = HOME if start is None else start
+    assert sequencer.plan_finished(motion_of(request, begin, duration))
+    return request, start
+
+
+# --- pairing -----------------------------------------------------------------------------
+
+def test_stamp_pairing_pairs_identical_stamps_and_never_another_pick():
+    pairing = PosePairing()
+    assert pairing.add_pick((1, 0), 'a', 'stamp', 10) is None
+    assert pairing.add_pick((2, 0), 'b', 'stamp', 10) is None
+    # The place of stamp 1 was lost: the place of stamp 2 still gets pick b.
+    assert pairing.take_pick((2, 0), 'stamp') == 'b'
+    with pytest.raises(UnpairedPlaceError, match='stamp'):
+        pairing.take_pick((3, 0), 'stamp')
+    assert len(pairing) == 1
+    assert 'queue full' in pairing.add_pick((4, 0), 'c', 'stamp', 1)
+    with pytest.raises(UnpairedPlaceError):
+        pairing.take_pick((1, 0), 'stamp')  # dropped, with a warning, when the queue was full
+    assert pairing.take_pick((4, 0), 'stamp') == 'c'
+
+
+def test_sequence_pairing_takes_the_pending_pick_and_a_mode_change_clears():
+    pairing = PosePairing()
+    assert pairing.add_pick((1, 0), 'a', 'sequence', 10) is None
+    assert 'replaced' in pairing.add_pick((2, 0), 'b', 'sequence', 10)
+    assert pairing.take_pick((9, 0), 'sequence') == 'b'
+    with pytest.raises(UnpairedPlaceError, match='pending'):
+        pairing.take_pick((9, 0), 'sequence')
+    pairing.add_pick((1, 0), 'a', 'sequence', 10)
+    pairing.add_pick((1, 0), 'x', 'stamp', 10)  # the sequence pick is dropped
+    assert len(pairing) == 1 and pairing.take_pick((1, 0), 'stamp') == 'x'
+
+
+# --- the queue ---------------------------------------------------------------------------
+
+def test_a_full_queue_rejects_the_newest_pair_naming_the_length(sequencer):
+    for _ in range(3):
+        sequencer.submit(PICK, PLACE, 'pick_place')
+    with pytest.raises(QueueFullError, match='3 pairs queued') as error:
+        sequencer.submit(PICK, PLACE, 'pick_place')
+    assert 'pair 4' in str(error.value) and error.value.kind == 'queue_full'
+    counts = sequencer.counts()
+    assert (counts['received'], counts['rejected'], counts['queued']) == (4, 1, 3)
+    assert added_up(counts)
+    # Planned and held pairs count too: one planned, still 3 in the queue.
+    plan_next(sequencer)
+    with pytest.raises(QueueFullError):
+        sequencer.submit(PICK, PLACE, 'pick_place')
+
+
+def test_pairs_are_planned_in_order_each_from_the_end_of_the_one_before(sequencer, clock):
+    places = [PLACE, PICK, np.array([0.0, -0.2, -0.8])]
+    numbers = [sequencer.submit(PICK, place, 'place_pose').number for place in places]
+    assert numbers == [1, 2, 3]
+    first, start = plan_next(sequencer)
+    assert first.number == 1 and start is None, 'nothing runs: the caller finds the robot'
+    second, start = plan_next(sequencer)
+    assert second.number == 2 and np.array_equal(start, places[0])
+    # The first is released and runs; the third is planned from the held second's end.
+    motion = sequencer.take_for_release()
+    sequencer.released(motion, clock.now)
+    third, start = plan_next(sequencer)
+    assert third.number == 3 and np.array_equal(start, places[1])
+    assert sequencer.take_for_planning() is None
+
+
+def test_the_tail_is_the_running_motion_while_it_runs_and_the_robot_after(sequencer, clock):
+    sequencer.submit(PICK, PLACE, 'place_pose')
+    plan_next(sequencer, duration=0.5)
+    sequencer.released(sequencer.take_for_release(), clock.now)
+    sequencer.submit(PICK, PICK + [0.1, 0.0, 0.0], 'place_pose')
+    clock.now += 0.3
+    request, start = sequencer.take_for_planning()
+    assert np.array_equal(start, PLACE), 'the running motion ends at the place'
+    sequencer.plan_failed()
+    sequencer.submit(PICK, PLACE, 'place_pose')
+    clock.now += 0.3  # the first motion has ended
+    request, start = sequencer.take_for_planning()
+    assert start is None
+    counts = sequencer.counts()
+    assert (counts['rejected'], counts['planned'], counts['released']) == (1, 1, 1)
+
+
+@pytest.mark.parametrize('header_stamp', ['zero', 'ahead'])
+def test_a_held_motion_is_released_only_when_the_one_before_has_ended(clock, header_stamp):
+    sequencer = Sequencer(5, clock=clock)
+    for _ in range(3):
+        sequencer.submit(PICK, PLACE, 'pick_place')
+        plan_next(sequencer, duration=0.4)
+    releases = []
+    for _ in range(3):
+        due = sequencer.due(clock.now)
+        if releases:
+            assert due == pytest.approx(releases[-1].latest_end)
+            clock.now = due - 1e-6
+            assert sequencer.take_for_release() is None, 'never while the previous one runs'
+            clock.now = due
+        motion = sequencer.take_for_release()
+        assert motion is not None and sequencer.take_for_release() is None
+        releases.append(sequencer.released(motion, clock.now, header_stamp, PERIOD, 0.004))
+    first, second, _ = releases
+    if header_stamp == 'zero':
+        assert second.published == pytest.approx(first.published + PERIOD + 0.4)
+        assert (second.earliest_start, second.latest_start) == pytest.approx(
+            (second.published, second.published + PERIOD))
+        assert second.predicted_gap() == pytest.approx((0.0, 2 * PERIOD))
+    else:
+        assert second.stamp == second.earliest_start == second.latest_start
+        assert second.stamp == pytest.approx(second.published + 0.004)
+        assert second.predicted_gap() == pytest.approx((0.004, 0.004))
+    assert first.predicted_gap() is None and second.release_delay() == pytest.approx(0.0)
+    assert not second.waited_for_planner
+    assert sequencer.predicted_end(clock.now) == pytest.approx(releases[-1].latest_end)
+    assert sequencer.running(releases[-1].latest_end - 1e-6) is releases[-1]
+    assert sequencer.running(releases[-1].latest_end) is None
+    counts = sequencer.counts()
+    assert (counts['released'], counts['queued']) == (3, 0) and added_up(counts)
+
+
+def test_the_predicted_end_adds_the_held_motions(sequencer, clock):
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer, duration=0.4)
+    release = sequencer.released(sequencer.take_for_release(), clock.now)
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer, duration=0.3)
+    sequencer.submit(PICK, PLACE, 'pick_place')  # waiting: its duration is unknown
+    assert sequencer.predicted_end(clock.now) == pytest.approx(release.latest_end + 0.3)
+    assert len(sequencer) == 2
+
+
+def test_a_plan_that_ends_after_the_previous_motion_made_the_robot_wait(sequencer, clock):
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer, duration=0.4)
+    sequencer.released(sequencer.take_for_release(), clock.now)
+    sequencer.submit(PICK, PLACE, 'pick_place')  # arrives while the first one runs
+    request, start = sequencer.take_for_planning()
+    clock.now += 1.0  # the plan takes longer than the running motion
+    sequencer.plan_finished(motion_of(request, start))
+    release = sequencer.released(sequencer.take_for_release(), clock.now)
+    assert release.waited_for_planner
+    assert release.release_delay() == pytest.approx(1.0 - 0.4 - 0.002)
+
+
+def test_clear_drops_waiting_planning_and_held_pairs_but_not_the_running_one(clock):
+    sequencer = Sequencer(10, clock=clock)
+    for _ in range(5):
+        sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer)
+    running = sequencer.released(sequencer.take_for_release(), clock.now)
+    plan_next(sequencer)  # pair 2 held
+    request, start = sequencer.take_for_planning()  # pair 3 being planned
+    assert sequencer.clear() == [2, 3, 4, 5]
+    assert sequencer.last_release is running and sequencer.running() is running
+    assert not sequencer.plan_finished(motion_of(request, start)), 'cleared while planned'
+    assert sequencer.take_for_release(running.latest_end) is None
+    counts = sequencer.counts()
+    assert (counts['dropped'], counts['released'], counts['queued']) == (4, 1, 0)
+    assert added_up(counts)
+    assert sequencer.clear() == []
+
+
+def test_a_motion_that_fails_at_release_is_dropped_and_counted(sequencer, clock):
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer)
+    assert sequencer.take_for_release() is not None
+    assert sequencer.counts()['releasing'] == 1
+    sequencer.release_failed()
+    counts = sequencer.counts()
+    assert (counts['dropped'], counts['releasing']) == (1, 0) and added_up(counts)
+
+
+def test_release_timing_rejects_an_unknown_stamp_mode():
+    assert release_timing(1.0, 'zero', PERIOD, 0.004) == (1.0, 1.0 + PERIOD, None)
+    assert release_timing(1.0, 'ahead', PERIOD, 0.004) == (1.004, 1.004, 1.004)
+    with pytest.raises(InvalidInputError, match='header_stamp'):
+        release_timing(1.0, 'now', PERIOD, 0.004)
+
+
+def test_the_blocking_waits_return_when_due_and_on_stop():
+    sequencer = Sequencer(4)  # real monotonic clock
+    assert sequencer.next_to_plan(0.01) is None and sequencer.wait_for_release(0.01) is None
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer, duration=0.05)
+    first = sequencer.wait_for_release(1.0)
+    release = sequencer.released(first, time.monotonic())
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer, duration=0.05)
+    second = sequencer.wait_for_release(1.0)
+    assert second is not None and time.monotonic() >= release.latest_end
+    results = []
+    waiter = threading.Thread(target=lambda: results.append(sequencer.next_to_plan(5.0)))
+    waiter.start()
+    sequencer.stop()
+    waiter.join(5.0)
+    assert results == [None] and sequencer.stopped
+
+
+# --- where the robot is at release ------------------------------------------------------
+
+@pytest.fixture(scope='module')
+def planned():
+    """Return a PlannedMotion of a real plan from HOME through PICK to PLACE, and the next."""
+    sequencer = Sequencer(2, clock=FakeClock())
+    first = sequencer.submit(PICK, PLACE, 'pick_place')
+    second = sequencer.submit(HOME, PICK, 'pick_place')
+    motions = []
+    for request, start in ((first, HOME), (second, PLACE)):
+        plan = plan_cycle(start, request.pick, request.place, CONFIG)
+        motions.append(PlannedMotion(request, plan.joint_trajectory, start, plan.end_position,
+                                     0.0))
+    return motions
+
+
+def test_the_start_check_against_a_fresh_joint_state(planned, clock):
+    first, second = planned
+    sequencer = Sequencer(2, clock=clock)
+    assert check_start(first, None, None, 0.0, CONFIG.geometry, 1e-3).action == 'publish'
+    check = check_start(first, None, HOME + [0.0, 0.0005, 0.0], 0.0, CONFIG.geometry, 1e-3)
+    assert (check.action, check.basis) == ('publish', 'joint_states')
+    assert check.distance == pytest.approx(5e-4)
+    jogged = HOME + [0.01, 0.0, 0.0]
+    check = check_start(first, None, jogged, 0.0, CONFIG.geometry, 1e-3)
+    assert check.action == 'replan' and np.array_equal(check.position, jogged)
+    release = sequencer.released(first, 10.0)
+    # Measured after the first motion's end: compared with the second motion's start.
+    after = release.latest_end + 0.001
+    assert check_start(second, release, PLACE, after, CONFIG.geometry, 1e-3).action == 'publish'
+    check = check_start(second, release, jogged, after, CONFIG.geometry, 1e-3)
+    assert check.action == 'replan' and check.basis == 'joint_states'
+
+
+def test_a_joint_state_measured_during_the_motion_is_compared_with_the_motion(planned, clock):
+    first, second = planned
+    release = Sequencer(2, clock=clock).released(first, 10.0)
+    duration = first.duration
+    # Where the robot is on track 3 ms before the end (still short of it, moving slowly): no
+    # re-plan, whichever cycle the zero-stamped trajectory started at.
+    for started in (release.earliest_start, release.latest_start):
+        measured_at = started + duration - 0.003
+        on_track = forward_kinematics(
+            quintic_interpolate(first.trajectory, duration - 0.003)[0], CONFIG.geometry)
+        assert track_deviation(release, on_track, measured_at, CONFIG.geometry) < 1e-6
+        check = check_start(second, release, on_track, measured_at, CONFIG.geometry, 1e-3)
+        assert (check.action, check.basis) == ('publish', 'joint_states_on_track')
+    # Off the trajectory (the controller aborted): wait for a joint state after its end.
+    off = PLACE + [0.0, 0.0, 0.02]
+    check = check_start(second, release, off, release.latest_start + duration - 0.003,
+                        CONFIG.geometry, 1e-3)
+    assert check.action == 'wait' and check.distance > 0.01
+    # No joint state: the robot is at the end of the last motion.
+    check = check_start(second, release, None, 0.0, CONFIG.geometry, 1e-3)
+    assert (check.action, check.basis) == ('publish', 'last_trajectory')
