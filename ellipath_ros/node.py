@@ -112,6 +112,10 @@ NODE_NAME = 'ellipath_node'
 EXECUTOR_THREADS = 3
 # How long shutdown waits for the planning and release threads [s].
 SHUTDOWN_WAIT = 2.0
+# Depth of the pose topics' subscription queues: far above queue_depth, so that a burst is
+# read by intake (which rejects what the cycle queue cannot take, with a status) instead of
+# being dropped by DDS without a word.
+INTAKE_TOPIC_DEPTH = 1000
 # How often a blocked worker thread looks whether the node stops [s].
 WORKER_POLL = 0.1
 # The interpreter's thread switch interval [s]: the release thread wakes at a trajectory's
@@ -169,11 +173,12 @@ class EllipathNode(Node):
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
         intake_group = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place, depth,
+        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
+                                 INTAKE_TOPIC_DEPTH,
                                  callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, depth,
+        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_TOPIC_DEPTH,
                                  callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'place_pose', self._on_place, depth,
+        self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_TOPIC_DEPTH,
                                  callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,

@@ -144,16 +144,18 @@ PARAMETER_TABLE = (
           'lost place joins the next place with the wrong pick); pick_place pairs need '
           'neither', choices=PAIRING_MODES),
     _node('queue_depth', _INTEGER, 10, '',
-          'Depth of the topic queues, most picks waiting for their place, and most pairs in '
-          'the cycle queue (waiting to be planned, being planned and held); when it is full '
-          'the newest pair is rejected with a WARN status', low=1, high=1000, read_only=True),
-    _node('header_stamp', _STRING, 'zero', '',
+          'Most pairs in the cycle queue (waiting to be planned, being planned and held; when '
+          'it is full the newest pair is rejected with a WARN status), most picks waiting for '
+          'their place, and depth of the published topics (the pose topics are read through '
+          'queues of 1000)', low=1, high=1000, read_only=True),
+    _node('header_stamp', _STRING, 'ahead', '',
           "Trajectory header.stamp. Jazzy's joint_trajectory_controller replaces a running "
           'trajectory at its next cycle whatever the stamp, so each trajectory is published '
-          'only once the one before it has ended. zero = start at the control cycle that '
-          'picks it up (within controller_period of publication); ahead = publication + '
-          'release_lead (the controller holds the robot still until then: an exactly known '
-          'start)', choices=HEADER_STAMPS),
+          'only once the one before it has ended. ahead = publication + release_lead (the '
+          'controller holds the robot still until then: the start, hence the end, is known '
+          'exactly); zero = start at the control cycle that picks it up (assumed within '
+          'controller_period of publication; a later delivery lets the next trajectory cut '
+          "this one's last milliseconds)", choices=HEADER_STAMPS),
     _node('controller_period', _DOUBLE, 0.002, 's',
           "The controller's update period: a zero-stamped trajectory starts at most this long "
           'after publication, and the next one is released at that latest end', low=1e-4,

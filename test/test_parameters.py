@@ -88,7 +88,7 @@ def test_defaults_of_the_issue():
     defaults = parameter_defaults()
     assert defaults['frame_id'] == 'base_link'
     assert defaults['pairing'] == 'stamp'
-    assert defaults['header_stamp'] == 'zero'
+    assert defaults['header_stamp'] == 'ahead'
     assert defaults['controller_period'] == 0.002
     assert defaults['start_tolerance'] == 0.001
     assert defaults['home_position'] == [0.0, 0.0, -0.8]
