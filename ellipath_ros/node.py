@@ -116,6 +116,8 @@ SHUTDOWN_WAIT = 2.0
 # read by intake (which rejects what the cycle queue cannot take, with a status) instead of
 # being dropped by DDS without a word.
 INTAKE_TOPIC_DEPTH = 1000
+# Each message of these topics is one pair, counted once whatever becomes of it.
+PAIR_TOPICS = ('place_pose', 'pick_place')
 # How often a blocked worker thread looks whether the node stops [s].
 WORKER_POLL = 0.1
 # The interpreter's thread switch interval [s]: the release thread wakes at a trajectory's
@@ -275,9 +277,13 @@ class EllipathNode(Node):
                                   **self._queue_values()})
         except EllipathError as error:
             self.get_logger().warn(f'{topic} rejected: {error}')
-            self._publish_status(DiagnosticStatus.ERROR, str(error),
-                                 {'topic': topic, 'kind': error.kind})
+            values = {'topic': topic, 'kind': error.kind}
+            if topic in PAIR_TOPICS:
+                values.update(pair=self._sequencer.reject(), **self._queue_values())
+            self._publish_status(DiagnosticStatus.ERROR, str(error), values)
         except Exception as error:  # a bug in one message must not stop the node
+            if topic in PAIR_TOPICS:
+                self._sequencer.reject()
             self._report_internal(topic, error)
 
     def _checked_frame(self, topic, frame_id, settings):
@@ -456,10 +462,16 @@ class EllipathNode(Node):
             return
         message = motion.details['message']
         if settings.header_stamp == 'ahead':
+            # The stamp and the node's record of it come from back-to-back clock readings.
+            published = time.monotonic()
             stamp = self.get_clock().now() + Duration(seconds=settings.release_lead)
             message.header.stamp = stamp.to_msg()
-        published = time.monotonic()
-        self._trajectory_publisher.publish(message)
+            self._trajectory_publisher.publish(message)
+        else:
+            self._trajectory_publisher.publish(message)
+            # Read after publishing, so the latest start (this + controller_period) is not
+            # underestimated by the time publish() takes.
+            published = time.monotonic()
         release = self._sequencer.released(motion, published, settings.header_stamp,
                                            settings.controller_period, settings.release_lead)
         self._last_end_position = motion.end_position

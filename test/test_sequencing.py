@@ -132,6 +132,15 @@ def test_a_full_queue_rejects_the_newest_pair_naming_the_length(sequencer):
         sequencer.submit(PICK, PLACE, 'pick_place')
 
 
+def test_a_pair_rejected_before_the_queue_is_counted_and_numbered(sequencer):
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    assert sequencer.reject() == 2
+    assert sequencer.submit(PICK, PLACE, 'pick_place').number == 3
+    counts = sequencer.counts()
+    assert (counts['received'], counts['rejected'], counts['queued']) == (3, 1, 2)
+    assert added_up(counts)
+
+
 def test_pairs_are_planned_in_order_each_from_the_end_of_the_one_before(sequencer, clock):
     places = [PLACE, PICK, np.array([0.0, -0.2, -0.8])]
     numbers = [sequencer.submit(PICK, place, 'place_pose').number for place in places]

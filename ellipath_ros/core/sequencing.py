@@ -395,6 +395,19 @@ class Sequencer:
             self._condition.notify_all()
             return request
 
+    def reject(self):
+        """
+        Count a pair rejected before the queue (invalid, unpaired); return its number.
+
+        So that every pair sent is accounted for, the caller counts each place_pose and each
+        pick_place message as one pair, whether or not it could be paired and validated.
+        """
+        with self._condition:
+            self._numbers += 1
+            self._counts['received'] += 1
+            self._counts['rejected'] += 1
+            return self._numbers
+
     # --- planning ---------------------------------------------------------------------------
 
     def take_for_planning(self, now=None):
