@@ -32,6 +32,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 import ellipath_ros
 from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.core.joint_trajectory import validate_jtc
+from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -150,4 +151,39 @@ def test_node_process_refuses_invalid_parameters_without_traceback(ros_env):
     returncode, stdout, stderr = _stop(process)
     assert returncode == 1
     assert 'invalid parameters' in stderr + stdout and 'joint_max' in stderr + stdout
+    assert 'Traceback' not in stderr + stdout
+
+
+def test_node_process_stops_cleanly_on_sigint_with_pairs_held(ros_env, ros_context):
+    process = _start_node(ros_env, '--params-file', str(CONFIG / 'ellipath.yaml'))
+    client = None
+    try:
+        client = Node('ellipath_process_test_burst', context=ros_context, namespace=NAMESPACE)
+        pair_publisher = client.create_publisher(PoseArray, 'pick_place', 10)
+        trajectories = []
+        trajectory_subscription = client.create_subscription(
+            JointTrajectory, 'joint_trajectory', trajectories.append, 10)
+        executor = SingleThreadedExecutor(context=ros_context)
+        executor.add_node(client)
+        assert _spin_until(executor, lambda: (
+            process.poll() is not None
+            or (pair_publisher.get_subscription_count() > 0
+                and trajectory_subscription.get_publisher_count() > 0)),
+            DISCOVERY_TIMEOUT), 'the node was not discovered'
+        _spin_until(executor, lambda: False, 0.5)
+        for index in range(5):
+            message = PoseArray()
+            message.header.frame_id = 'base_link'
+            message.header.stamp.sec = index + 1
+            message.poses = [_pose(-0.15, -0.1 + 0.05 * index, -0.85).pose,
+                             _pose(0.15, 0.1, -0.8).pose]
+            pair_publisher.publish(message)
+        # The first runs, the others are being planned or held: stop now.
+        assert _spin_until(executor, lambda: trajectories, TIMEOUT), 'no trajectory'
+        executor.shutdown()
+    finally:
+        if client is not None:
+            client.destroy_node()
+        returncode, stdout, stderr = _stop(process)
+    assert returncode == 0, stderr
     assert 'Traceback' not in stderr + stdout

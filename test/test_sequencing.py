@@ -278,7 +278,7 @@ def test_the_blocking_waits_return_when_due_and_on_stop():
     release = sequencer.released(first, time.monotonic())
     sequencer.submit(PICK, PLACE, 'pick_place')
     plan_next(sequencer, duration=0.05)
-    second = sequencer.wait_for_release(1.0)
+    second = sequencer.wait_for_release(1.0, spin=0.02)  # sleeps, then polls the clock
     assert second is not None and time.monotonic() >= release.latest_end
     results = []
     waiter = threading.Thread(target=lambda: results.append(sequencer.next_to_plan(5.0)))

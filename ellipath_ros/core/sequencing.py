@@ -498,13 +498,16 @@ class Sequencer:
             self._releasing = self._held.popleft()
             return self._releasing
 
-    def wait_for_release(self, timeout):
+    def wait_for_release(self, timeout, spin=0.0):
         """
         Block until the oldest held motion is due and take it; None on timeout or stop.
 
         The wait ends at the motion's due time on ``clock`` (``time.monotonic`` in the node);
         the caller then checks where the robot is, publishes, and reports
-        :meth:`released` or :meth:`release_failed`.
+        :meth:`released` or :meth:`release_failed`. The last ``spin`` seconds before the due
+        time are spent polling the clock (yielding the GIL between polls) instead of sleeping:
+        a thread that sleeps until the due time may get a core only milliseconds later on a
+        busy machine.
         """
         deadline = time.monotonic() + timeout
         with self._condition:
@@ -517,7 +520,15 @@ class Sequencer:
                 if remaining <= 0.0:
                     return None
                 due = self.due(now)
-                self._condition.wait(remaining if due is None else min(remaining, due - now))
+                if due is not None and due - now <= spin:
+                    self._condition.release()
+                    try:
+                        time.sleep(0.0)
+                    finally:
+                        self._condition.acquire()
+                    continue
+                self._condition.wait(
+                    remaining if due is None else min(remaining, due - now - spin))
         return None
 
     def released(self, motion, published, header_stamp='zero', controller_period=0.002,
