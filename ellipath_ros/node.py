@@ -71,6 +71,7 @@ from ellipath_ros.conversions import joint_trajectory_message
 from ellipath_ros.conversions import path_markers
 from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
+from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
@@ -172,6 +173,8 @@ class EllipathNode(Node):
         self._joint_state_arrived = threading.Condition()
         self._latest_joint_state = None
         self._last_end_position = None
+        # (clock time, node-clock Time) at which the last 'ahead' trajectory ends.
+        self._ahead_end = (None, None)
         self._status_name = f'{self.get_name()}: plan'
 
         # The pose topics share one mutually exclusive group: their order is kept and the
@@ -443,7 +446,11 @@ class EllipathNode(Node):
     def _release_loop(self):
         """Publish each held trajectory once the one before it has ended, until the node stops."""
         while not self._sequencer.stopped:
-            motion = self._sequencer.wait_for_release(WORKER_POLL, spin=RELEASE_SPIN)
+            settings = self._settings
+            motion = self._sequencer.wait_for_release(
+                WORKER_POLL, spin=RELEASE_SPIN,
+                handover_rest=(settings.release_lead if settings.header_stamp == 'ahead'
+                               else None))
             if motion is not None:
                 self._release(motion)
 
@@ -472,8 +479,19 @@ class EllipathNode(Node):
         if settings.header_stamp == 'ahead':
             # The stamp and the node's record of it come from back-to-back clock readings.
             published = time.monotonic()
-            stamp = self.get_clock().now() + Duration(seconds=settings.release_lead)
-            message.header.stamp = stamp.to_msg()
+            now = self.get_clock().now()
+            stamp = self._sequencer.stamp_for(published, settings.release_lead)
+            end, end_time = self._ahead_end
+            if stamp == end:
+                # Handed over during the previous motion's dwell: it starts exactly when that
+                # one ends on the controller's clock (its stamp plus its duration, in ns).
+                start_time = end_time
+            else:
+                start_time = now + Duration(seconds=stamp - published)
+            message.header.stamp = start_time.to_msg()
+            last = message.points[-1].time_from_start
+            self._ahead_end = (stamp + seconds_from_duration(last),
+                               start_time + Duration(seconds=last.sec, nanoseconds=last.nanosec))
             self._trajectory_publisher.publish(message)
         else:
             self._trajectory_publisher.publish(message)

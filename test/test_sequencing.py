@@ -343,3 +343,47 @@ def test_a_joint_state_measured_during_the_motion_is_compared_with_the_motion(pl
     # No joint state: the robot is at the end of the last motion.
     check = check_start(second, release, None, 0.0, CONFIG.geometry, 1e-3)
     assert (check.action, check.basis) == ('publish', 'last_trajectory')
+
+
+def dwelling(request, start, duration=0.4, rest=0.035):
+    """Return a PlannedMotion to the place of ``request`` that rests ``rest`` s at its end."""
+    move = motion_of(request, start, duration - rest).trajectory
+    trajectory = JointTrajectoryData(
+        move.joint_names, [0.0, duration - rest, duration],
+        np.vstack((move.positions, move.positions[-1:])), np.zeros((3, 3)), np.zeros((3, 3)))
+    return PlannedMotion(request, trajectory, np.asarray(start, dtype=float), request.place,
+                         plan_time=0.01)
+
+
+def test_with_ahead_stamps_a_held_motion_is_handed_over_during_the_final_dwell(clock):
+    sequencer = Sequencer(4, clock=clock)
+    requests = [sequencer.submit(PICK, PLACE, 'pick_place') for _ in range(3)]
+    for request in requests:
+        taken, start = sequencer.take_for_planning()
+        sequencer.plan_finished(dwelling(taken, HOME if start is None else start))
+    first = sequencer.released(sequencer.take_for_release(), clock.now, 'ahead', PERIOD, 0.004)
+    assert first.motion.final_rest == pytest.approx(0.035)
+    dwell_start = first.latest_end - 0.035
+    # A zero stamp would start at once: only after the end; ahead: from the dwell's start.
+    assert sequencer.due(clock.now) == pytest.approx(first.latest_end)
+    assert sequencer.due(clock.now, handover_rest=0.004) == pytest.approx(dwell_start)
+    assert sequencer.due(clock.now, handover_rest=0.05) == pytest.approx(first.latest_end)
+    clock.now = dwell_start - 1e-6
+    assert sequencer.take_for_release(handover_rest=0.004) is None, 'still moving'
+    clock.now = dwell_start
+    motion = sequencer.take_for_release(handover_rest=0.004)
+    assert sequencer.stamp_for(clock.now, 0.004) == pytest.approx(first.latest_end)
+    second = sequencer.released(motion, clock.now, 'ahead', PERIOD, 0.004)
+    assert second.stamp == pytest.approx(first.latest_end), 'starts exactly as the first ends'
+    assert second.predicted_gap() == pytest.approx((0.0, 0.0))
+    assert second.release_delay() == pytest.approx(-0.035)
+    # Released late in the dwell (less than release_lead before its end): stamp ahead as usual.
+    clock.now = second.latest_end - 0.001
+    third = sequencer.released(sequencer.take_for_release(handover_rest=0.004), clock.now,
+                               'ahead', PERIOD, 0.004)
+    assert third.stamp == pytest.approx(clock.now + 0.004)
+
+
+def test_a_move_without_a_final_dwell_has_no_rest(planned):
+    first, _ = planned
+    assert first.final_rest == 0.0

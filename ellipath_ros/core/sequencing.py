@@ -31,7 +31,9 @@ ended:
 * planning (:meth:`Sequencer.next_to_plan`, one worker) plans the pairs one by one in arrival
   order, each from the end of the motion planned before it, and holds the result;
 * release (:meth:`Sequencer.wait_for_release`, one worker) hands the oldest held motion over
-  when the motion released before it has ended at the latest (see :class:`Release`).
+  when the motion released before it has ended at the latest (see :class:`Release`), or, with
+  ``ahead`` stamps, as soon as that motion rests in its final dwell, stamped to start exactly
+  when the dwell ends (see :meth:`Sequencer.due`).
 
 The class is thread-safe (one :class:`threading.Condition`) and ROS-free; its clock is
 injected so the logic is tested with a fake one. :class:`PosePairing` pairs picks and places
@@ -46,7 +48,7 @@ import time
 import numpy as np
 
 from .errors import EllipathError, InvalidInputError, require_range
-from .joint_trajectory import JointTrajectoryData, quintic_interpolate
+from .joint_trajectory import JointTrajectoryData, quintic_interpolate, REST_TOLERANCE
 from .kinematics import forward_kinematics
 
 PAIRING_MODES = ('stamp', 'sequence')
@@ -187,6 +189,24 @@ class PlannedMotion:
         """Duration of the trajectory [s]."""
         return self.trajectory.duration
 
+    @property
+    def final_rest(self):
+        """
+        Return how long the trajectory rests at its last point before its end [s].
+
+        A dwell (``place_dwell``) is a last segment between two points of equal positions with
+        zero velocities and accelerations (to ``REST_TOLERANCE``, the rounding left by the
+        timing): JTC's quintic there is constant.
+        """
+        times = self.trajectory.time_from_start
+        if times.size < 2:
+            return 0.0
+        trajectory = self.trajectory
+        at_rest = all(np.all(np.abs(values) <= REST_TOLERANCE) for values in (
+            trajectory.positions[-1] - trajectory.positions[-2], trajectory.velocities[-2:],
+            trajectory.accelerations[-2:]))
+        return float(times[-1] - times[-2]) if at_rest else 0.0
+
 
 @dataclass(frozen=True)
 class Release:
@@ -196,8 +216,9 @@ class Release:
     A zero-stamped trajectory published at ``published`` starts at the first control cycle
     after it arrives: not before ``published`` and at the latest ``controller_period`` later
     (transport on one host takes some tens of microseconds and is neglected). An ``ahead``
-    stamp starts exactly at the stamp. The next motion is released at ``latest_end``, so the
-    controller never replaces a running trajectory.
+    stamp starts exactly at the stamp. The next motion is released at ``latest_end``, or during
+    a final dwell long enough (``ahead`` only, see :meth:`Sequencer.due`), so the controller
+    never replaces a trajectory while it moves the robot.
 
     Attributes
     ----------
@@ -238,7 +259,11 @@ class Release:
         return self.earliest_start + self.motion.duration
 
     def release_delay(self):
-        """Return publication minus the latest end of the previous motion [s], or None."""
+        """
+        Return publication minus the latest end of the previous motion [s], or None.
+
+        Negative for a release during the previous motion's final dwell.
+        """
         return None if self.previous_end is None else self.published - self.previous_end
 
     def predicted_gap(self):
@@ -256,7 +281,7 @@ class Release:
                 self.latest_start - self.previous_earliest_end)
 
 
-def release_timing(published, header_stamp, controller_period, release_lead):
+def release_timing(published, header_stamp, controller_period, release_lead, previous_end=None):
     """
     Return (earliest start, latest start, stamp) of a trajectory published at ``published``.
 
@@ -271,10 +296,16 @@ def release_timing(published, header_stamp, controller_period, release_lead):
     release_lead : float
         Stamp ahead of the publication in ``'ahead'`` mode [s]; it must exceed transport plus
         one controller period, or the controller starts the trajectory late, mid-motion.
+    previous_end : float or None
+        Latest end of the motion released before. With ``'ahead'`` the stamp is never before
+        it: a trajectory released during the previous one's final dwell starts exactly when
+        that one ends.
 
     """
     if header_stamp == 'ahead':
         stamp = published + release_lead
+        if previous_end is not None:
+            stamp = max(stamp, previous_end)
         return stamp, stamp, stamp
     if header_stamp != 'zero':
         raise InvalidInputError(
@@ -480,25 +511,40 @@ class Sequencer:
 
     # --- release ----------------------------------------------------------------------------
 
-    def due(self, now):
-        """Return the clock time at which the oldest held motion may be released, or None."""
+    def due(self, now, handover_rest=None):
+        """
+        Return the clock time at which the oldest held motion may be released, or None.
+
+        That is the latest end of the last released motion; with ``handover_rest`` (the node
+        passes ``release_lead`` when ``header_stamp`` is ``ahead``), the start of that motion's
+        final dwell if the dwell lasts at least ``handover_rest``: from then on the robot
+        rests at the point where the held motion starts, so the controller's spline from the
+        measured state (p, v = 0, a = 0) to that first point is constant, and the held motion,
+        stamped at the end of the dwell, starts exactly then.
+        """
         with self._condition:
             if not self._held or self._releasing is not None:
                 return None
             last = self._last_release
-            return now if last is None else max(now, last.latest_end)
+            if last is None:
+                return now
+            handover = last.latest_end
+            rest = last.motion.final_rest
+            if handover_rest is not None and rest >= handover_rest:
+                handover -= rest
+            return max(now, handover)
 
-    def take_for_release(self, now=None):
+    def take_for_release(self, now=None, handover_rest=None):
         """Take the oldest held motion if it is due at ``now``, without blocking; else None."""
         now = self.clock() if now is None else now
         with self._condition:
-            due = self.due(now)
+            due = self.due(now, handover_rest)
             if due is None or due > now:
                 return None
             self._releasing = self._held.popleft()
             return self._releasing
 
-    def wait_for_release(self, timeout, spin=0.0):
+    def wait_for_release(self, timeout, spin=0.0, handover_rest=None):
         """
         Block until the oldest held motion is due and take it; None on timeout or stop.
 
@@ -507,19 +553,19 @@ class Sequencer:
         :meth:`released` or :meth:`release_failed`. The last ``spin`` seconds before the due
         time are spent polling the clock (yielding the GIL between polls) instead of sleeping:
         a thread that sleeps until the due time may get a core only milliseconds later on a
-        busy machine.
+        busy machine. ``handover_rest``: see :meth:`due`.
         """
         deadline = time.monotonic() + timeout
         with self._condition:
             while not self._stopped:
                 now = self.clock()
-                motion = self.take_for_release(now)
+                motion = self.take_for_release(now, handover_rest)
                 if motion is not None:
                     return motion
                 remaining = deadline - time.monotonic()
                 if remaining <= 0.0:
                     return None
-                due = self.due(now)
+                due = self.due(now, handover_rest)
                 if due is not None and due - now <= spin:
                     self._condition.release()
                     try:
@@ -530,6 +576,13 @@ class Sequencer:
                 self._condition.wait(
                     remaining if due is None else min(remaining, due - now - spin))
         return None
+
+    def stamp_for(self, published, release_lead):
+        """Return the ``ahead`` stamp of a motion published at ``published`` (clock time, s)."""
+        with self._condition:
+            last = self._last_release
+            return release_timing(published, 'ahead', 0.0, release_lead,
+                                  None if last is None else last.latest_end)[2]
 
     def released(self, motion, published, header_stamp='zero', controller_period=0.002,
                  release_lead=0.004):
@@ -542,11 +595,11 @@ class Sequencer:
             Its timing (see :func:`release_timing`) and its relation to the previous motion.
 
         """
-        earliest, latest, stamp = release_timing(published, header_stamp, controller_period,
-                                                 release_lead)
         with self._condition:
             previous = self._last_release
             previous_end = None if previous is None else previous.latest_end
+            earliest, latest, stamp = release_timing(published, header_stamp, controller_period,
+                                                     release_lead, previous_end)
             release = Release(
                 motion, published, earliest, latest, stamp, previous_end,
                 None if previous is None else previous.earliest_end,
