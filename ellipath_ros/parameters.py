@@ -153,9 +153,11 @@ PARAMETER_TABLE = (
           'trajectory at its next cycle whatever the stamp, so each trajectory is published '
           'only once the one before it has ended. ahead = publication + release_lead (the '
           'controller holds the robot still until then: the start, hence the end, is known '
-          'exactly); zero = start at the control cycle that picks it up (assumed within '
-          'controller_period of publication; a later delivery lets the next trajectory cut '
-          "this one's last milliseconds)", choices=HEADER_STAMPS),
+          'exactly), or, published during the previous final dwell (place_dwell >= '
+          'release_lead), the end of that dwell: no idle time; zero = start at the control '
+          'cycle that picks it up (assumed within controller_period of publication; a later '
+          "delivery lets the next trajectory cut this one's last milliseconds)",
+          choices=HEADER_STAMPS),
     _node('controller_period', _DOUBLE, 0.002, 's',
           "The controller's update period: a zero-stamped trajectory starts at most this long "
           'after publication, and the next one is released at that latest end', low=1e-4,

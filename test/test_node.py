@@ -553,19 +553,35 @@ JOINT_LIMIT_SLACK = 1.05  # JTC's quintic between knots may exceed a planned pea
 NANOSECOND = 1e-9  # s, the resolution of stamps and of time_from_start
 
 
-def execute(received, settings, start=HOME):
+def late_deliveries(samples, starts, published, settings):
     """
-    Replay received trajectories through the Jazzy JTC emulation at 1 kHz.
+    Return which trajectories reached the controller later than the node counts on.
 
-    ``received`` holds (time.monotonic() at receipt, message); a non-zero header.stamp (node
-    clock = system time) is moved to the monotonic clock. The emulation asserts that no
-    joint is commanded a step (speed or acceleration beyond the limits, from one cycle to
-    the next).
+    A zero stamp: taken up more than controller_period after publication; an ahead stamp:
+    taken up after its stamp (it then starts late, a little into its motion).
+    """
+    pickups = samples.pickup_times
+    if settings.header_stamp == 'ahead':
+        return pickups > starts
+    return pickups - np.asarray(published) > settings.controller_period
+
+
+def execute(harness, start=HOME):
+    """
+    Replay the trajectories a harness received through the Jazzy JTC emulation at 1 kHz.
+
+    Each trajectory is delivered at the time DDS received it; a non-zero header.stamp (node
+    clock = system time) is moved to the monotonic clock. Asserts that no joint is commanded a
+    step (speed or acceleration beyond the limits from one cycle to the next), except where a
+    trajectory reached the controller later than the node counts on (see
+    :func:`late_deliveries`: on a loaded host DDS sometimes delivers a few milliseconds late).
 
     Returns the controller samples, the executed TCP, the largest distance of the executed
     TCP to the planned path of the trajectory commanding it, the executed gaps (start of
-    each trajectory minus the end of the one before) [s] and the starts [s].
+    each trajectory minus the end of the one before) [s] and which were delivered late.
     """
+    settings = harness.node._settings
+    received = harness.received
     period = 0.001
     planned = [joint_trajectory_data(message) for _, message in received]
     # Cycle phase relative to the receptions: arbitrary, fixed by the first reception.
@@ -595,26 +611,22 @@ def execute(received, settings, start=HOME):
     starts = np.where(stamps > 0.0, stamps, samples.pickup_times)
     ends = starts + np.array([trajectory.duration for trajectory in planned])
     gaps = starts[1:] - ends[:-1]
-    # Commanded joint speed and acceleration from the commanded positions, cycle by cycle.
+    late = late_deliveries(samples, starts, harness.published, settings)
+    # Wrong stamps would make every delivery late and the checks below vacuous.
+    assert late.sum() < late.size / 2, f'{late.sum()} of {late.size} delivered late'
+    # Commanded joint speed and acceleration from the commanded positions, cycle by cycle,
+    # leaving out the cycles around a late take-up.
+    near_late = np.zeros(samples.times.size, dtype=bool)
+    for pickup in samples.pickup_times[late]:
+        near_late |= np.abs(samples.times - pickup) <= 3 * period
     joint_speed = np.abs(np.diff(samples.positions, axis=0)) / period
     joint_accel = np.abs(np.diff(samples.positions, 2, axis=0)) / period ** 2
     limits = settings.planner.joint_limits
-    assert joint_speed.max() <= limits.max_velocity * JOINT_LIMIT_SLACK, 'a joint step'
-    assert joint_accel.max() <= limits.max_acceleration * JOINT_LIMIT_SLACK, 'a joint step'
-    return samples, executed, float(np.nanmax(deviation)), gaps, starts
-
-
-def late_deliveries(samples, starts, published, settings):
-    """
-    Return which trajectories reached the controller later than the node counts on.
-
-    A zero stamp: taken up more than controller_period after publication; an ahead stamp:
-    taken up after its stamp (it then starts late, a little into its motion).
-    """
-    pickups = samples.pickup_times
-    if settings.header_stamp == 'ahead':
-        return pickups > starts
-    return pickups - np.asarray(published) > settings.controller_period
+    assert joint_speed[~near_late[1:]].max() <= limits.max_velocity * JOINT_LIMIT_SLACK, (
+        'a joint step')
+    assert joint_accel[~near_late[2:]].max() <= limits.max_acceleration * JOINT_LIMIT_SLACK, (
+        'a joint step')
+    return samples, executed, float(np.nanmax(deviation)), gaps, late
 
 
 def send_burst(harness, pairs, spacing):
@@ -662,8 +674,7 @@ def test_a_burst_of_ten_pairs_is_executed_one_after_another_on_the_planned_paths
     assert [values['pair'] for values in planned] == [str(n) for n in range(1, 11)]
     assert [values['start_source'] for values in planned[1:]] == ['queue_tail'] * 9
 
-    settings = harness.node._settings
-    samples, executed, deviation, gaps, starts = execute(harness.received, settings)
+    samples, executed, deviation, gaps, late = execute(harness)
     assert deviation <= EXECUTED_TOLERANCE, f'executed TCP {deviation * 1e3:.3f} mm off the plan'
     assert np.all(np.isfinite(executed.positions))
     targets = [point for pair in BURST for point in pair]
@@ -673,7 +684,6 @@ def test_a_burst_of_ten_pairs_is_executed_one_after_another_on_the_planned_paths
     # stamp the node counts on a start within controller_period of publication (transport
     # neglected); on a loaded host DDS sometimes delivers later than that, and then the next
     # one may start before that late one ends: this is checked where the bound held.
-    late = late_deliveries(samples, starts, harness.published, settings)
     assert np.all(gaps[~late[:-1]] >= -NANOSECOND), (gaps, late)
     if place_dwell > 0.0:
         # Handed over during the dwell, stamped at its end: no idle time at all.
@@ -700,13 +710,11 @@ def test_pairs_arriving_exactly_as_the_running_trajectory_ends(make_harness):
     assert harness.idle()
     harness.spin_for(SETTLE)
     assert all(status.level == DiagnosticStatus.OK for status in harness.statuses)
-    settings = harness.node._settings
-    samples, executed, deviation, gaps, starts = execute(harness.received, settings)
+    _, executed, deviation, gaps, late = execute(harness)
     assert deviation <= EXECUTED_TOLERANCE
     targets = [point for pair in pairs for point in pair]
     visits = visit_times(executed.times, executed.positions, targets, EXECUTED_TOLERANCE)
     assert np.all(np.isfinite(visits)) and np.all(np.diff(visits) > 0.0)
-    late = late_deliveries(samples, starts, harness.published, settings)
     assert np.all(gaps[~late[:-1]] >= -NANOSECOND), (gaps, late)
     for (_, previous), (_, message) in zip(harness.received, harness.received[1:]):
         np.testing.assert_allclose(message.points[0].positions, previous.points[-1].positions,

@@ -12,4 +12,4 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""ROS-free planning core: geometry, timing, kinematics and one orchestration function."""
+"""ROS-free planning core: geometry, timing, kinematics, one orchestration function, sequencing."""
