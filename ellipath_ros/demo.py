@@ -60,6 +60,7 @@ from ellipath_ros.demo_report import evaluate_run
 from ellipath_ros.demo_report import format_report
 from ellipath_ros.demo_report import mm_text
 from ellipath_ros.demo_report import PairOutcome
+from ellipath_ros.demo_report import PLAN_TIME_KEY
 from ellipath_ros.demo_report import ReceivedTrajectory
 import numpy as np
 
@@ -485,11 +486,13 @@ class _Cell:
         sent = time.perf_counter()
         self._place_publisher.publish(self._pose(outcome.place, stamp))
 
+        # The answer is the plan's OK status (it carries the plan's metrics) or the place's
+        # rejection; other statuses (warnings, later news of earlier pairs) are not it.
         def answer():
             return next(((level, message, values)
                          for level, message, values in self._statuses[first_status:]
-                         if level == 'OK' or (level == 'ERROR'
-                                              and values.get('topic') == 'place_pose')),
+                         if (level == 'OK' and PLAN_TIME_KEY in values)
+                         or (level == 'ERROR' and values.get('topic') == 'place_pose')),
                         None)
 
         if not self._spin_until(lambda: answer() is not None, timeout):

@@ -557,13 +557,17 @@ _PAIR_WIDTH = 36
 
 
 def table_header():
-    """Return the two header lines of the pair table."""
+    """Return the header lines of the pair table, saying which columns are executed."""
+    legend = ('planned: phi, apex, planned duration, plan (planning time); executed (the '
+              'controller emulated): start (take-up since the first pair was sent), gap '
+              '(idle since the previous trajectory ended; negative: it was cut short), dev '
+              '(largest TCP distance from the planned paths)\n')
     titles = [f'{"#":>4}  {"pick -> place":<{_PAIR_WIDTH}}']
     units = [f'{"":>4}  {"[mm]":<{_PAIR_WIDTH}}']
     for title, unit, width, _, _ in _COLUMNS:
         titles.append(f'{title:>{width}}')
         units.append(f'{unit:>{width}}')
-    return ' '.join(titles) + '  status\n' + ' '.join(units) + '\n'
+    return legend + ' '.join(titles) + '  status\n' + ' '.join(units) + '\n'
 
 
 def table_row(row):
