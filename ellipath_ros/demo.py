@@ -60,7 +60,6 @@ from ellipath_ros.demo_report import evaluate_run
 from ellipath_ros.demo_report import format_report
 from ellipath_ros.demo_report import mm_text
 from ellipath_ros.demo_report import PairOutcome
-from ellipath_ros.demo_report import PLAN_TIME_KEY
 from ellipath_ros.demo_report import ReceivedTrajectory
 import numpy as np
 
@@ -82,6 +81,8 @@ SPIN_STEP = 0.01  # s, longest single wait of the client's executor
 # After the predicted end of the last trajectory: how long a stray one has to show up.
 SETTLE = 0.2  # s
 PACINGS = ('burst', 'idle')
+# The message of the node's status for a planned pair.
+PLANNED_MESSAGE = 'planned'
 # Idle pacing: the next pair goes this long after the previous trajectory's predicted end
 # (one control period, and a little for the clocks of the two nodes).
 IDLE_MARGIN = 0.01  # s
@@ -392,19 +393,23 @@ class _Cell:
         depth = settings.queue_depth
         self._pick_publisher = self.node.create_publisher(PoseStamped, 'pick_pose', depth)
         self._place_publisher = self.node.create_publisher(PoseStamped, 'place_pose', depth)
-        # (message, system-clock time of receipt [s]); the controller, another subscriber,
-        # gets it about then.
-        self._trajectories = []
+        self._trajectories = []  # (message, system-clock time of reception [s])
         self._statuses = []  # (level, message, values) of the planner's statuses
         self._answered_trajectories = 0  # trajectories waited for by wait_until_idle()
         self._trajectory_subscription = self.node.create_subscription(
-            JointTrajectory, 'joint_trajectory',
-            lambda message: self._trajectories.append((message, time.time())), depth)
+            JointTrajectory, 'joint_trajectory', self._on_trajectory, depth)
         # /diagnostics is shared by every node of the domain: keep a longer queue.
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                       100)
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
+
+    def _on_trajectory(self, message, info):
+        """Keep a trajectory with the time the middleware received it."""
+        # The callback may run some milliseconds later (this process also plans): the
+        # middleware's reception time is when the controller, another subscriber, has it.
+        received = info.get('received_timestamp', 0) * 1e-9
+        self._trajectories.append((message, received or time.time()))
 
     def close(self):
         """Stop the executor and destroy the node."""
@@ -486,12 +491,12 @@ class _Cell:
         sent = time.perf_counter()
         self._place_publisher.publish(self._pose(outcome.place, stamp))
 
-        # The answer is the plan's OK status (it carries the plan's metrics) or the place's
-        # rejection; other statuses (warnings, later news of earlier pairs) are not it.
+        # The answer is the 'planned' status or the place's rejection; other statuses
+        # (warnings, news of earlier pairs such as their release) are not it.
         def answer():
             return next(((level, message, values)
                          for level, message, values in self._statuses[first_status:]
-                         if (level == 'OK' and PLAN_TIME_KEY in values)
+                         if (level == 'OK' and message == PLANNED_MESSAGE)
                          or (level == 'ERROR' and values.get('topic') == 'place_pose')),
                         None)
 

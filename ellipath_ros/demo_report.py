@@ -175,7 +175,8 @@ class PairRow:
         Executed: when the controller took its trajectory up, from the first pair sent [s].
     gap : float
         Executed: idle time between the end of the previous trajectory and the start of
-        this one [s]; negative when this one replaced the previous one before its end.
+        this one [s]; negative when this one replaced the previous one before its end (then
+        minus the time the previous one had left).
     deviation : float
         Executed: largest distance of the TCP from the planned paths while its trajectory
         commanded the robot [m].
@@ -319,7 +320,8 @@ def evaluate_run(outcomes, trajectories, home_position, config, start_time, time
         ``plan_latency_mean``/``_max`` [s], ``round_trip_mean`` [s]; executed:
         ``executed_cycles`` (pairs whose pick and place were visited in order),
         ``executed_span`` [s], ``executed_picks_per_min``, ``executed_gap_max``/``_p50``
-        [s], ``executed_replacements`` (trajectories replaced while running),
+        [s] (over every hand-over; negative: a replacement), ``executed_replacements``
+        (trajectories replaced while running) and ``executed_cut_max`` [s],
         ``executed_deviation_max`` [m], ``executed_visits`` and ``visit_targets``,
         ``executed_peak_tcp_speed``/``_accel``/``_jerk`` (finite differences at 1 kHz),
         ``executed_peak_joint_velocity``/``_accel``.
@@ -385,8 +387,8 @@ def _executed_figures(replay, owner, config, failures):
     """Measure the executed motion; append the failed executed checks to ``failures``."""
     samples, tcp, deviation = replay.samples, replay.tcp, replay.deviation
     figures = {}
-    gaps = [gap for gap in replay.gaps.values() if gap >= 0.0]
-    cuts = [-gap for gap in replay.gaps.values() if gap < 0.0]
+    gaps = list(replay.gaps.values())
+    cuts = list(replay.cut_short.values())
     figures['executed_gap_max'] = max(gaps) if gaps else math.nan
     figures['executed_gap_p50'] = float(np.median(gaps)) if gaps else math.nan
     figures['executed_replacements'] = len(cuts)
@@ -505,7 +507,7 @@ def _judge(outcome, number, problems, replay):
         deviation = float(np.nanmax(replay.deviation[rows])) if rows.any() else math.nan
     if problems:
         return PairRow(outcome, 'invalid', '; '.join(problems), start, gap, deviation)
-    reasons = []
+    reasons, notes = [], []
     pick_visit, place_visit = (
         visit_times(replay.samples.times[rows], replay.tcp.positions[rows],
                     [outcome.pick, outcome.place], VISIT_TOLERANCE) if rows.any()
@@ -516,15 +518,18 @@ def _judge(outcome, number, problems, replay):
         reasons.append('place not reached')
     if deviation > PATH_TOLERANCE:
         reasons.append(f'left the planned path by {deviation * _MM:.2f} mm')
+    # A hand-over before the end is judged by what it does to the path (deviation, visits):
+    # one that continues the running motion exactly is allowed (issue 9).
     if number in replay.cut_short:
-        reasons.append(f'replaced by the next trajectory {replay.cut_short[number] * _MS:.0f} '
-                       'ms before its end')
+        notes.append(f'replaced by the next trajectory {replay.cut_short[number] * _MS:.1f} '
+                     'ms before its end')
     if gap < 0.0:
-        reasons.append(f'took over while the previous trajectory ran ({-gap * _MS:.0f} ms '
-                       'left)')
+        notes.append(f'took over while the previous trajectory ran ({-gap * _MS:.1f} ms '
+                     'left)')
     if reasons:
-        return PairRow(outcome, 'not_executed', '; '.join(reasons), start, gap, deviation)
-    return PairRow(outcome, 'ok', '', start, gap, deviation)
+        return PairRow(outcome, 'not_executed', '; '.join(reasons + notes), start, gap,
+                       deviation)
+    return PairRow(outcome, 'ok', '; '.join(notes), start, gap, deviation)
 
 
 def mm_text(point):
@@ -608,8 +613,9 @@ def format_report(report, config):
         f'executed (Jazzy JTC emulation at {1.0 / CONTROL_PERIOD:g} Hz): '
         f'{f["executed_cycles"]} cycles completed in {_number(f["executed_span"], ".3f")} s '
         f'-> {_number(f["executed_picks_per_min"], ".1f")} picks/min',
-        f'executed gap between trajectories: max {_number(f["executed_gap_max"], ".1f", _MS)} '
-        f'ms, p50 {_number(f["executed_gap_p50"], ".1f", _MS)} ms; '
+        'executed gap between trajectories (negative: taken up before the previous one '
+        f'ended): max {_number(f["executed_gap_max"], ".1f", _MS)} ms, p50 '
+        f'{_number(f["executed_gap_p50"], ".1f", _MS)} ms; '
         f'{f["executed_replacements"]} replaced while running',
         f'executed TCP vs planned paths: max deviation '
         f'{_number(f["executed_deviation_max"], ".3f", _MM)} mm (limit '

@@ -83,13 +83,13 @@ def next_cycle(time):
     return T0 + math.ceil(round((time - T0) / PERIOD, 6)) * PERIOD
 
 
-def released_in_sequence(plans):
-    """Each trajectory arrives HAND_OVER after the previous one ends, stamp zero."""
+def released_in_sequence(plans, hand_over=HAND_OVER):
+    """Each trajectory arrives ``hand_over`` after the previous one ends, stamp zero."""
     received, arrival = [], T0
     for plan in plans:
         trajectory = plan.joint_trajectory
         received.append(ReceivedTrajectory(trajectory, 0.0, arrival))
-        arrival = next_cycle(arrival) + trajectory.duration + HAND_OVER
+        arrival = next_cycle(arrival) + trajectory.duration + hand_over
     return received
 
 
@@ -144,6 +144,18 @@ def test_trajectories_published_at_once_fail_on_the_executed_deviation(plans):
     assert 'replaced by the next trajectory' in report.rows[0].reason
     assert report.rows[1].gap < 0.0
     assert 'result: FAIL' in format_report(report, CONFIG)
+
+
+def test_a_hand_over_just_before_the_end_is_judged_by_the_path(plans):
+    # Two cycles early the robot is micrometres from the place, nearly at rest: the
+    # replacement is reported, but the path and the visits are intact.
+    report = evaluate_run(outcomes(plans), released_in_sequence(plans, hand_over=-0.002),
+                          HOME, CONFIG, T0)
+    assert report.passed, report.failures
+    assert report.figures['executed_replacements'] == 2
+    assert report.figures['executed_gap_max'] < 0.0
+    assert 'took over while the previous trajectory ran' in report.rows[1].reason
+    assert report.rows[1].verdict == 'ok'
 
 
 def test_a_planned_bad_pair_and_an_unexpected_rejection_fail(plans):
