@@ -374,7 +374,7 @@ class _Cell:
         The planning node (its names filter the diagnostics; its pending pick count tells when
         a pick has been taken).
     settings : ellipath_ros.parameters.NodeSettings
-        The node's settings (frame and header stamp convention).
+        The node's settings (frame of the poses, queue depth).
 
     """
 

@@ -124,16 +124,14 @@ class ControllerSamples:
 class _Active:
     """A received message in controller joint order, and its sampling state."""
 
-    def __init__(self, index, message, stamp_ns, fields, velocity_state):
+    def __init__(self, index, message, stamp_ns, velocity_state):
         self.index = index
         self.knots_ns = message['knots_ns']
         self.positions = message['positions']
         self.velocities = message['velocities']
         self.accelerations = message['accelerations']
-        self.stamp_ns = stamp_ns
-        self.fields = fields
         self.velocity_state = velocity_state
-        self.start_ns = stamp_ns
+        self.start_ns = stamp_ns  # trajectory_start_time_: 0 until the first sample
         self.before_ns = None
         self.before = None
 
@@ -321,7 +319,7 @@ class JazzyJtcEmulator:
         self._last_receive_ns = receive_ns
         index = len(self._pickups)
         self._pickups.append(math.nan)
-        self._pending = (index, message, stamp_ns, fields)
+        self._pending = (index, message, stamp_ns)
         return index
 
     def _validate(self, trajectory, stamp_ns, receive_ns, fields):
@@ -381,9 +379,9 @@ class JazzyJtcEmulator:
         """Run cycles until the state for ``cycle`` is known (its own cycle not yet run)."""
         while self._cycle < cycle:
             if self._pending is not None:
-                index, message, stamp_ns, fields = self._pending
+                index, message, stamp_ns = self._pending
                 self._pending = None
-                self._active = _Active(index, message, stamp_ns, fields, self.velocity_state)
+                self._active = _Active(index, message, stamp_ns, self.velocity_state)
                 _, positions, velocities, _, _ = self._rows[-1]
                 now_ns = self._start_ns + self._cycle * self._period_ns
                 self._active.take_up(now_ns, positions[-1], velocities[-1])
