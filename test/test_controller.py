@@ -330,6 +330,15 @@ def test_distance_to_paths_takes_the_nearest_chord_of_any_path():
     assert np.isnan(distances[3])
 
 
+def test_distance_to_paths_measures_each_path_on_its_own():
+    # The nearest vertex overall is the short path's, 9 mm away, but the long chord passes
+    # 1 mm from the point between its two far vertices.
+    long_chord = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    short = np.array([[0.5, 0.01, 0.0], [0.5, 0.02, 0.0]])
+    distance = distance_to_paths([[0.5, 0.001, 0.0]], [short, long_chord])
+    assert distance[0] == pytest.approx(0.001)
+
+
 def test_visit_times_require_the_order():
     times = np.arange(5.0)
     track = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 0, 0], [0, 0, 0]], dtype=float)
