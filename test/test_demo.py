@@ -19,16 +19,13 @@ The runs happen in this process on a domain of their own (conftest.py: 46 + 37 =
 default), with DDS on this host; every wait of the demo is bounded by ``--timeout``. The
 report itself is tested on synthetic runs in test_demo_report.py.
 
-The node on main publishes a pair that arrives while a trajectory runs at once, stamped to
-start when the running one ends; Jazzy's joint_trajectory_controller replaces the running
-trajectory instead. So today the burst run fails on the executed motion, and
-``test_the_burst_demo_detects_the_replaced_trajectories`` asserts that it does; once the node
-holds each trajectory until the previous one has ended it must pass (exit 0), and that test
-flips to assert so.
+Jazzy's joint_trajectory_controller replaces a running trajectory at its next cycle, so the
+node holds each trajectory until the previous one has ended;
+``test_the_burst_demo_executes_every_trajectory_after_the_one_before`` checks on the executed
+motion (the controller emulated) that the burst run passes.
 """
 
 import argparse
-import re
 import time
 
 from ellipath_ros import demo
