@@ -169,9 +169,9 @@ class EllipathNode(Node):
         depth = self._settings.queue_depth
         self._pairing = PosePairing()
         self._sequencer = Sequencer(depth)
-        # (JointState, time.monotonic() at arrival); notified on every joint state.
+        # Notified on every joint state (the release thread may wait for a fresh one).
         self._joint_state_arrived = threading.Condition()
-        self._latest_joint_state = None
+        self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
         self._last_end_position = None
         # (clock time, node-clock Time) at which the last 'ahead' trajectory ends.
         self._ahead_end = (None, None)
@@ -384,10 +384,11 @@ class EllipathNode(Node):
             self._report_internal(request.topic, error, pair=request.number)
             return
         # Reported before it is held, so that its 'released' status cannot come first.
-        values = {'topic': request.topic, 'pair': request.number,
-                  'start_source': start_source, 'plan_time': motion.plan_time,
-                  'receive_to_plan_latency': time.monotonic() - request.received}
-        values.update(motion.details['metrics'])
+        values = dict(motion.details['metrics'])
+        # plan_time: the whole plan, the message and its check included (as in 'released').
+        values.update(topic=request.topic, pair=request.number, start_source=start_source,
+                      plan_time=motion.plan_time,
+                      receive_to_plan_latency=time.monotonic() - request.received)
         values.update(self._queue_values())
         self._publish_status(DiagnosticStatus.OK, 'planned', values)
         # None if cleared while planned: the clear_queue status names it.

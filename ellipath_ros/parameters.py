@@ -175,8 +175,10 @@ PARAMETER_TABLE = (
           'TCP start position (x, y, z) when neither a fresh joint state nor a previous '
           'trajectory is known'),
     _node('joint_state_timeout', _DOUBLE, 0.5, 's',
-          'Joint states older than this (by arrival time) are ignored as the start; 0 never '
-          'uses them', low=0.0, high=60.0),
+          'Joint states older than this (by arrival time) are ignored, as the start and at '
+          'release; also the longest wait at release for a joint state measured after the '
+          'previous motion when the last one showed the robot off it; 0 never uses them',
+          low=0.0, high=60.0),
     # Robot geometry and joint position limits.
     _core('base_radius', _DOUBLE, 'm', 'Base centre to actuator axis (R)', low=0.0, high=5.0),
     _core('effector_radius', _DOUBLE, 'm', 'Effector centre (TCP) to forearm joint (r)',
