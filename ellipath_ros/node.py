@@ -373,7 +373,8 @@ class EllipathNode(Node):
                 start_source = 'queue_tail'
             motion = self._plan(request, start, start_source, settings)
         except EllipathError as error:
-            self._sequencer.plan_failed()
+            if not self._sequencer.plan_failed():
+                return  # cleared while planned: the clear_queue status names it
             self.get_logger().warn(f'pair {request.number} ({request.topic}) rejected: {error}')
             self._publish_status(DiagnosticStatus.ERROR, str(error), {
                 'topic': request.topic, 'kind': error.kind, 'pair': request.number,

@@ -250,6 +250,13 @@ def test_clear_drops_waiting_planning_and_held_pairs_but_not_the_running_one(clo
     assert (counts['dropped'], counts['released'], counts['queued']) == (4, 1, 0)
     assert added_up(counts)
     assert sequencer.clear() == []
+    # A pair cleared while planned whose plan then fails is dropped too, not rejected.
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    sequencer.take_for_planning()
+    assert sequencer.clear() == [6]
+    assert not sequencer.plan_failed()
+    counts = sequencer.counts()
+    assert (counts['dropped'], counts['rejected']) == (5, 0) and added_up(counts)
 
 
 def test_a_motion_that_fails_at_release_is_dropped_and_counted(sequencer, clock):

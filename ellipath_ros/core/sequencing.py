@@ -503,11 +503,18 @@ class Sequencer:
             return held
 
     def plan_failed(self):
-        """Count the pair being planned as rejected (its plan failed)."""
+        """
+        Count the pair being planned as rejected (its plan failed); return True.
+
+        Returns False, and counts it as dropped, when the queue was cleared while it was
+        planned: the clear already reported it.
+        """
         with self._condition:
             self._planning = None
-            self._counts['rejected'] += 1
+            cancelled = self._planning_cancelled or self._stopped
+            self._counts['dropped' if cancelled else 'rejected'] += 1
             self._condition.notify_all()
+            return not cancelled
 
     # --- release ----------------------------------------------------------------------------
 
@@ -637,8 +644,7 @@ class Sequencer:
             self._waiting.clear()
             self._held.clear()
             if self._planning is not None and not self._planning_cancelled:
-                # Counted as dropped when its plan ends (plan_finished) or as rejected if it
-                # fails: either way once.
+                # Counted as dropped once its plan ends (plan_finished or plan_failed).
                 self._planning_cancelled = True
                 dropped.append(self._planning.number)
             self._condition.notify_all()
