@@ -204,6 +204,8 @@ class EllipathNode(Node):
                          for loop in (self._planning_loop, self._release_loop)]
         for worker in self._workers:
             worker.start()
+        # Whoever shuts the context down (a signal, rclpy.shutdown), the threads stop using it.
+        self.context.on_shutdown(self._sequencer.stop)
 
         planner = self._settings.planner
         self.get_logger().info(
@@ -213,12 +215,16 @@ class EllipathNode(Node):
             f'joints {list(planner.joint_names)}. Pose orientations are ignored (3-DOF Delta '
             'robot: only the position is used).')
 
-    def destroy_node(self):
-        """Stop the planning and release threads (waiting for a plan in progress), then destroy."""
+    def stop_workers(self, timeout=SHUTDOWN_WAIT):
+        """Stop the planning and release threads; wait up to ``timeout`` s for each."""
         self._sequencer.stop()
         for worker in self._workers:
             if worker is not threading.current_thread():
-                worker.join(SHUTDOWN_WAIT)
+                worker.join(timeout)
+
+    def destroy_node(self):
+        """Stop the planning and release threads (waiting for a plan in progress), then destroy."""
+        self.stop_workers()
         return super().destroy_node()
 
     @property
@@ -464,6 +470,8 @@ class EllipathNode(Node):
             motion, check = self._checked_start(motion, settings)
         except EllipathError as error:
             self._sequencer.release_failed()
+            if self._sequencer.stopped:
+                return  # shutting down: the context may be gone
             reason = f'pair {request.number} dropped at release: {error}'
             self.get_logger().error(reason)
             self._publish_status(DiagnosticStatus.ERROR, reason, {
@@ -576,6 +584,8 @@ class EllipathNode(Node):
 
     def _report_internal(self, topic, error, **values):
         """Log an unexpected failure with its traceback and publish an ERROR status."""
+        if self._sequencer.stopped:
+            return  # shutting down: the context may be gone
         self.get_logger().error(
             f'{topic}: unexpected {type(error).__name__}: {error}\n{traceback.format_exc()}')
         self._publish_status(DiagnosticStatus.ERROR,
@@ -625,9 +635,12 @@ def main(args=None):
         get_logger(NODE_NAME).fatal(f'invalid parameters: {error}')
         exit_code = 1
     finally:
+        if node is not None:
+            # First the node's own threads (waiting for a plan in progress), so that none of
+            # them publishes or logs while the executor and the context go down.
+            node.stop_workers()
         executor.shutdown()
         if node is not None:
-            # Stops the planning and release threads, waiting for a plan in progress.
             node.destroy_node()
         rclpy.try_shutdown()
     return exit_code
