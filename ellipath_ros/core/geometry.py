@@ -43,9 +43,14 @@ from .errors import DegenerateGeometryError, InvalidInputError, require_point, r
 
 ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 
-# A critical angle closer than this below a whole degree makes the paper's
-# ellipse needle-thin (b -> 0); the paper's rule then takes the next degree.
-PAPER_MIN_MARGIN_DEG = 0.1
+# As phi* nears the critical angle the paper's ellipse collapses onto the chord T1-T2
+# (k -> 0): the arc rises only k above the chord's midpoint, its radius at T1 and T2 is
+# k**2 / l and its smallest radius b**2 / a <= k**2 / l. Below this bulge k / l (radius at
+# the tangent points under l / 100) the paper's rule takes the next whole degree. Near the
+# paper's 10 deg example this is the margin of about 0.1 deg used before; unlike a fixed
+# margin it scales with the angle, so every sound paper ellipse is kept (e.g. phi* = 1 deg
+# at a 0.94 deg critical angle: k / l = 0.25). See docs/paper_reproduction.md, erratum 3.
+_PAPER_MIN_BULGE = 0.1
 # Horizontal distances below this are a straight move from pick to place (no arc): any
 # ellipse over so short a width is a needle whose corners no robot can follow.
 MIN_HORIZONTAL_DISTANCE = 1e-3
@@ -101,11 +106,11 @@ def paper_phi(half_width, h):
     """
     Return the paper's optimal angle phi* [rad] (eq. 18), regularised.
 
-    phi* = ceil(critical angle in degrees), mirrored for h < 0. Where the
-    critical angle is a whole degree or less than ``PAPER_MIN_MARGIN_DEG``
-    below one, the paper's rule gives a degenerate or needle-thin ellipse, so
-    the next whole degree is taken. h = 0 returns 0 (the paper's 0/0, whose
-    limit from either side is the semicircle).
+    phi* = ceil(critical angle in degrees), mirrored for h < 0. Where that
+    ellipse is collapsed onto the chord T1-T2 (a critical angle on or just
+    below a whole degree: k / l below ``_PAPER_MIN_BULGE``), the next whole
+    degree is taken. h = 0 returns 0 (the paper's 0/0, whose limit from
+    either side is the semicircle).
 
     Raises
     ------
@@ -113,18 +118,20 @@ def paper_phi(half_width, h):
         If the rule leaves no ellipse (phi* would reach 90 degrees).
 
     """
-    critical_deg = math.degrees(math.atan2(abs(h), half_width))
     if h == 0.0:
         return 0.0
+    critical_deg = math.degrees(math.atan2(abs(h), half_width))
     phi_deg = math.ceil(critical_deg)
-    if phi_deg - critical_deg < PAPER_MIN_MARGIN_DEG:
+    min_k_squared = (_PAPER_MIN_BULGE * half_width) ** 2
+    if phi_deg < 90 and (
+            _conjugate_k_squared(half_width, h, math.radians(phi_deg)) < min_k_squared):
         phi_deg += 1
     if phi_deg >= 90:
         raise DegenerateGeometryError(
-            f'paper arc rule: expected a critical angle atan(|h|/l) below '
-            f'{90 - 1 - PAPER_MIN_MARGIN_DEG:g} deg, got {critical_deg:.4f} deg '
-            f'(l = {half_width:.6g} m, h = {h:.6g} m); use the apex_clearance or min_radius '
-            f'arc policy for steep moves')
+            f'paper arc rule: expected a whole degree below 90 deg whose ellipse is not '
+            f'collapsed onto the chord (k/l >= {_PAPER_MIN_BULGE:g}), got a critical angle '
+            f'atan(|h|/l) of {critical_deg:.4f} deg (l = {half_width:.6g} m, h = {h:.6g} m); '
+            f'use the apex_clearance or min_radius arc policy for steep moves')
     return math.copysign(math.radians(phi_deg), h)
 
 
@@ -152,14 +159,19 @@ def conjugate_k_from_phi(half_width, h, phi):
     """
     if h == 0.0:
         return half_width
-    k_squared = (half_width * half_width - h * h
-                 - 2.0 * half_width * abs(h) / math.tan(2.0 * abs(phi)))
+    k_squared = _conjugate_k_squared(half_width, h, phi)
     if not k_squared > 0.0:
         raise DegenerateGeometryError(
             f'phi: expected an angle beyond the critical angle '
             f'{math.degrees(math.atan2(abs(h), half_width)):.4f} deg, '
             f'got {math.degrees(phi):.4f} deg')
     return math.sqrt(k_squared)
+
+
+def _conjugate_k_squared(half_width, h, phi):
+    """Return k**2 from tan(2 phi) = 2 l h / (l**2 - h**2 - k**2); <= 0 if phi is too flat."""
+    return (half_width * half_width - h * h
+            - 2.0 * half_width * abs(h) / math.tan(2.0 * abs(phi)))
 
 
 def elliptic_e(m):
