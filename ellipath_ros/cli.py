@@ -162,7 +162,7 @@ def _run_bench(args):
 
 def _run_plot(args):
     try:
-        from ellipath_ros.plotting import write_figures
+        from ellipath_ros.paper.plotting import write_figures
         config = _config_from(args)
         written = write_figures(args.pick, args.place, args.out, config)
     except ImportError as error:

@@ -17,8 +17,8 @@ import math
 
 from ellipath_ros.core.errors import DegenerateGeometryError, InvalidInputError
 from ellipath_ros.core.geometry import (
-    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_apex, paper_axes,
-    paper_phi, plan_path)
+    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi, plan_path)
+from ellipath_ros.paper.equations import paper_apex, paper_axes
 import numpy as np
 import pytest
 

@@ -135,21 +135,6 @@ def paper_phi(half_width, h):
     return math.copysign(math.radians(phi_deg), h)
 
 
-def paper_axes(half_width, h, phi):
-    """
-    Return (a, b) of the ellipse of angle ``phi`` by the paper's eqs. (15)-(20).
-
-    Valid for phi strictly beyond the critical angle (D, E != 0); used to
-    reproduce the paper and for its Figure 2.
-    """
-    s, c = math.sin(phi), math.cos(phi)
-    d = half_width * math.sin(2 * phi) + 2 * h * s * s
-    e = half_width * math.sin(2 * phi) - 2 * h * c * c
-    f = half_width * half_width * s * s - h * h * c * c
-    g = half_width * half_width * c * c - h * h * s * s
-    return math.sqrt(d * f / e + g), math.sqrt(f + e * g / d)
-
-
 def conjugate_k_from_phi(half_width, h, phi):
     """
     Return k of the tangent ellipse whose major axis makes the angle ``phi``.
@@ -351,24 +336,6 @@ class EllipticArc:
 def require_finite_h(h):
     """Return the half rise as float; any finite value is allowed."""
     return require_range('h', h)
-
-
-def paper_apex(a, b, phi):
-    """
-    Return the apex (x*, y*) by the paper's eqs. (21)-(25), as a (2,) array.
-
-    Eq. (24) gives tan(theta*); of its two solutions we take the upper one.
-    """
-    big_a = math.cos(phi) ** 2 / a ** 2 + math.sin(phi) ** 2 / b ** 2
-    big_b = math.sin(2 * phi) / a ** 2 - math.sin(2 * phi) / b ** 2
-    theta = math.atan((2 * big_a * a * math.cos(phi) + big_b * a * math.sin(phi))
-                      / (2 * big_a * b * math.sin(phi) - big_b * b * math.cos(phi)))
-    candidates = []
-    for candidate in (theta, theta + math.pi):
-        candidates.append((
-            a * math.cos(phi) * math.cos(candidate) - b * math.sin(phi) * math.sin(candidate),
-            a * math.sin(phi) * math.cos(candidate) + b * math.cos(phi) * math.sin(candidate)))
-    return np.array(max(candidates, key=lambda point: point[1]))
 
 
 def arc_for_policy(half_width, h, policy):
