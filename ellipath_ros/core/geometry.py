@@ -15,9 +15,10 @@
 """
 The paper's path: an asymmetric bisected ellipse between two vertical segments.
 
-Paper frame (DESIGN §2): the vertical plane through pick and place, coordinates
-(x, y) = (horizontal along ``u``, vertical), origin at the midpoint of the
-tangent points, T1 = (-l, -h), T2 = (l, h), l > 0.
+Paper frame (also used by docs/paper_reproduction.md): the vertical plane
+through pick and place, coordinates (x, y) = (horizontal along ``u``,
+vertical), origin at the midpoint of the tangent points, T1 = (-l, -h),
+T2 = (l, h), l > 0.
 
 Every ellipse through T1 and T2 with vertical tangents there has its centre at
 the origin, so the family has one parameter. We use the conjugate
@@ -53,13 +54,13 @@ ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 _PAPER_MIN_BULGE = 0.1
 # Horizontal distances below this are a straight move from pick to place (no arc): any
 # ellipse over so short a width is a needle whose corners no robot can follow.
-MIN_HORIZONTAL_DISTANCE = 1e-3
+_MIN_HORIZONTAL_DISTANCE = 1e-3
 # An arc whose smallest radius of curvature is below this is rejected (needle-thin ellipse).
-MIN_ARC_RADIUS = 5e-5
+_MIN_ARC_RADIUS = 5e-5
 # Coordinates beyond this are no robot's workspace (and would overflow the arithmetic).
-MAX_COORDINATE = 10.0
+_MAX_COORDINATE = 10.0
 # Pick and place closer than this are the same point: nothing to plan.
-MIN_MOVE_DISTANCE = 1e-6
+_MIN_MOVE_DISTANCE = 1e-6
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _N_PANELS = 256
@@ -417,7 +418,7 @@ class PickPlacePath:
     The composite path: lift P1 -> T1, arc T1 -> T2, descent T2 -> P2 (base frame, m).
 
     Build it with :func:`plan_path`. A straight move (pick and place less than
-    ``MIN_HORIZONTAL_DISTANCE`` apart horizontally) has no arc: one straight
+    1 mm apart horizontally) has no arc: one straight
     segment from P1 to P2, stored as the lift when it rises (or stays level)
     and as the descent when it goes down.
 
@@ -441,7 +442,7 @@ class PickPlacePath:
     place: np.ndarray
     tangent_1: np.ndarray
     tangent_2: np.ndarray
-    arc: object
+    arc: EllipticArc | None
     direction: np.ndarray
     segment_lengths: np.ndarray
 
@@ -531,11 +532,11 @@ class PickPlacePath:
 
 
 def require_coordinates(name, point):
-    """Return ``point`` as a (3,) array of finite coordinates within +-MAX_COORDINATE m."""
+    """Return ``point`` as a (3,) array of finite coordinates within +-10 m."""
     point = require_point(name, point)
-    if np.abs(point).max() > MAX_COORDINATE:
+    if np.abs(point).max() > _MAX_COORDINATE:
         raise InvalidInputError(
-            f'{name}: expected coordinates within +-{MAX_COORDINATE:g} m, got {point.tolist()}')
+            f'{name}: expected coordinates within +-{_MAX_COORDINATE:g} m, got {point.tolist()}')
     return point
 
 
@@ -572,11 +573,11 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     policy = policy or ArcPolicy()
     offset = place - pick
     horizontal = math.hypot(offset[0], offset[1])
-    if np.linalg.norm(offset) < MIN_MOVE_DISTANCE:
+    if np.linalg.norm(offset) < _MIN_MOVE_DISTANCE:
         raise DegenerateGeometryError(
-            f'pick and place: expected points at least {MIN_MOVE_DISTANCE:g} m apart, '
+            f'pick and place: expected points at least {_MIN_MOVE_DISTANCE:g} m apart, '
             f'got {np.linalg.norm(offset):.3g} m (pick {pick.tolist()}, place {place.tolist()})')
-    if horizontal < MIN_HORIZONTAL_DISTANCE:
+    if horizontal < _MIN_HORIZONTAL_DISTANCE:
         # One straight line: the object stays in the same column, no clearance to clear.
         distance = float(np.linalg.norm(offset))
         rises = offset[2] >= 0.0
@@ -588,10 +589,10 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     tangent_2 = place + c2 * up
     direction = np.array([offset[0], offset[1], 0.0]) / horizontal
     arc = arc_for_policy(0.5 * horizontal, 0.5 * float(tangent_2[2] - tangent_1[2]), policy)
-    if arc.min_radius < MIN_ARC_RADIUS:
+    if arc.min_radius < _MIN_ARC_RADIUS:
         raise DegenerateGeometryError(
             f'arc ({policy.kind}): expected a smallest radius of curvature of at least '
-            f'{MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
+            f'{_MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
             f'ellipse for l = {arc.l:.4g} m, h = {arc.h:.4g} m); use the min_radius arc policy '
             f'with a larger min_radius, or move pick and place further apart horizontally')
     lengths = np.array([c1, arc.length, c2])

@@ -19,7 +19,7 @@ Optional: needs matplotlib (``pip install .[plot]``), imported lazily inside
 the functions and drawn with the Agg canvas only (no pyplot, no global backend
 change). Neither the planning core nor the node imports this module.
 
-Coordinates of the path figures are the paper frame (DESIGN §2): horizontal
+Coordinates of the path figures are the paper frame (``core/geometry.py``): horizontal
 along u from pick towards place, vertical z, origin at the midpoint of T1 and
 T2. Angles are shown in degrees (axis labels say so); everything else is SI.
 """
