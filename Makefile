@@ -8,7 +8,7 @@ export AMENT_PREFIX_PATH ?= $(abspath $(VENV))
 
 .PHONY: demo test lint bench figures colcon clean
 
-SOURCES := $(shell find ellipath_ros config resource -type f -not -name '*.pyc')
+SOURCES := $(shell find ellipath_ros config launch resource -type f -not -name '*.pyc')
 
 $(BIN)/ellipath: setup.py setup.cfg requirements-dev.txt package.xml $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,7 @@ colcon: $(BIN)/ellipath
 	test -x build/colcon/install/ellipath_ros/lib/ellipath_ros/ellipath_node
 	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/ellipath.yaml
 	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/paper.yaml
+	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/launch/ellipath.launch.py
 
 clean:
 	rm -rf $(VENV) build figures *.egg-info .pytest_cache
