@@ -28,6 +28,11 @@ test: $(BIN)/ellipath
 bench: $(BIN)/ellipath
 	$(BIN)/ellipath bench
 
+# The figures that README.md and docs/paper_reproduction.md embed (the paper's example, off-axis
+# so that the three joint curves of Figure 7 differ). Commit them after regenerating.
+figures: $(BIN)/ellipath
+	$(BIN)/ellipath plot --pick -0.15 0.1 -0.8 --place 0.15 0.1 -0.75 --out docs/figures
+
 colcon: $(BIN)/ellipath
 	rm -rf build/colcon
 	. $(BIN)/activate && colcon --log-base build/colcon/log build --base-paths . \

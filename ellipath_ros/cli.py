@@ -17,8 +17,8 @@ The ``ellipath`` command: plan, bench, demo and plot, with the node's defaults.
 
 ``ellipath plan`` calls the core directly (no ROS needed); ``demo`` starts
 the ROS 2 node; ``plot`` needs the ``plot`` extra and ``bench`` the ``bench``
-extra. Exit status 2 means a rejected input (the reason on stderr, or a JSON
-``error`` object on stdout with ``--json``).
+extra. Exit status 2 means a rejected input or malformed arguments (the
+reason on stderr, or a JSON ``error`` object on stdout with ``--json``).
 """
 
 import argparse
@@ -53,6 +53,21 @@ _PLAN_OPTIONS = (
     ('--output-mode', 'output_mode', str, 'joint trajectory as knots or samples'),
     ('--sample-period', 'sample_period', float, 'period of samples output [s]'),
 )
+
+
+class _ArgumentsRejected(Exception):
+    """Malformed command-line arguments, raised instead of argparse's exit."""
+
+    def __init__(self, parser, message):
+        super().__init__(message)
+        self.parser = parser
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser (and subparsers) that lets ``main`` report its errors as JSON."""
+
+    def error(self, message):
+        raise _ArgumentsRejected(self, message)
 
 
 def _add_plan_arguments(parser):
@@ -183,7 +198,7 @@ def _run_demo(args):
 
 def build_parser():
     """Return the argument parser of the ``ellipath`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog='ellipath', description='Elliptical pick-and-place planning for Delta robots '
         '(Choe et al., 2023), beyond the paper where it is weak.')
     commands = parser.add_subparsers(dest='command', required=True)
@@ -209,7 +224,19 @@ def build_parser():
 
 def main(argv=None):
     """Run the ``ellipath`` command; return the exit status."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except _ArgumentsRejected as error:
+        message = f'{error.parser.prog}: {error}'
+        if '--json' in argv:
+            sys.stdout.write(json.dumps({'error': {'kind': 'invalid_arguments',
+                                                   'message': message}}) + '\n')
+        else:
+            # argparse's own report: usage, then the reason.
+            error.parser.print_usage(sys.stderr)
+            sys.stderr.write(f'{error.parser.prog}: error: {error}\n')
+        return 2
     try:
         return args.run(args)
     except KeyboardInterrupt:
