@@ -55,7 +55,8 @@ _PAPER_MIN_BULGE = 0.1
 # Horizontal distances below this are a straight move from pick to place (no arc): any
 # ellipse over so short a width is a needle whose corners no robot can follow.
 _MIN_HORIZONTAL_DISTANCE = 1e-3
-# An arc whose smallest radius of curvature is below this is rejected (needle-thin ellipse).
+# An arc whose smallest radius of curvature is below this is rejected: a needle-thin ellipse,
+# whose ends allow at most sqrt(50 m/s**2 * 0.05 mm) = 5 cm/s at the default acceleration limit.
 _MIN_ARC_RADIUS = 5e-5
 # Coordinates beyond this are no robot's workspace (and would overflow the arithmetic).
 _MAX_COORDINATE = 10.0

@@ -68,7 +68,8 @@ _PAPER_LAME_D_FRACTIONS = (1.0 / 3.0, 1.0)
 _PAPER_LAME_E = 0.025
 # Assumed Lamé exponent (the paper does not state it).
 _DEFAULT_EXPONENT = 4.0
-# Default samples per curved piece of a comparison path.
+# Default samples per curved piece of a comparison path: a smooth line in Figure 8 (lengths
+# come from quadrature, not from these samples).
 _DEFAULT_SAMPLES = 201
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)

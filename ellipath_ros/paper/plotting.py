@@ -38,13 +38,15 @@ from ellipath_ros.paper.comparison import figure8_paths
 from ellipath_ros.paper.equations import paper_axes
 import numpy as np
 
-# Resolution of the written PNGs [dots per inch].
+# Resolution of the written PNGs [dots per inch]: readable, and small enough (about 30-100 kB)
+# to keep the figures of docs/figures in the repository.
 _DPI = 90
 # Figure 3 of the paper: radius of curvature of the ellipse a = 0.3 m, b = 0.05 m.
 _PAPER_FIG3_AXES = (0.3, 0.05)
 # Figure 2 of the paper: phi from the critical angle up to this [deg], in 1 deg steps.
 _PAPER_FIG2_LAST_DEG = 60
-# Time samples of the curves over one motion.
+# Time samples of the curves over one motion: on motions up to 2.5 s still six per 10 ms
+# jerk phase (50 m/s**2 reached at 5000 m/s**3), so the acceleration ramps are drawn, not cut.
 _TIME_SAMPLES = 1500
 
 _PLOT_EXTRA_HINT = 'install the plot extra: pip install .[plot]'
