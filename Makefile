@@ -19,7 +19,7 @@ $(BIN)/ellipath: setup.py setup.cfg requirements-dev.txt package.xml $(SOURCES)
 
 demo: $(BIN)/ellipath
 	$(BIN)/ellipath plan --pick 0 0 -0.8 --place 0.3 0 -0.75
-	$(BIN)/ellipath demo
+	$(BIN)/ellipath demo --pacing idle
 	$(BIN)/ellipath plot --pick 0 0 -0.8 --place 0.3 0 -0.75 --out figures
 
 test: $(BIN)/ellipath

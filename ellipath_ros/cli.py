@@ -215,7 +215,7 @@ def build_parser():
                        help='plans per case for the timing median (default: %(default)s)')
     bench.set_defaults(run=_run_bench)
     demo = commands.add_parser(
-        'demo', help='start the node, stream pick/place pairs, validate the trajectories')
+        'demo', help='start the node, send pick/place pairs, judge the executed motion')
     from ellipath_ros.demo import add_arguments
     add_arguments(demo)
     demo.set_defaults(run=_run_demo)

@@ -13,22 +13,26 @@
 # limitations under the License.
 
 """
-``ellipath demo``: a pick-and-place cell in one command, checked end to end over ROS 2.
+``ellipath demo``: a pick-and-place cell in one command, judged on the executed motion.
 
 :func:`run_demo` starts ``ellipath_node`` in this process (an executor thread of its own, an
 rclpy context of its own) and a separate client node that plays the cell. The client sends a
-conveyor-like stream of pick/place pairs, one pair at a time, with one deliberately
-unreachable pair among them; for each pair it waits for the trajectory or the diagnostics
-status, checks what arrived and prints one table row as soon as the cycle completes, then a
-summary.
+conveyor-like stream of pick/place pairs with one deliberately unreachable pair among them,
+and records the node's answer to each pair and every trajectory with its ``header.stamp``
+and the time it arrived. Pacing (``--pacing``):
 
-Each trajectory is checked with ``validate_jtc`` (joint names as configured, strictly
-increasing times, at rest at the end) and for what the cell needs beyond it: it starts at
-rest where the robot is (the node's ``home_position``, then the end of the previous
-trajectory), passes through the pick, ends at the place, and the controller's quintic
-interpolation, sampled every 0.5 ms, keeps the joints within their position, velocity and
-acceleration limits and the TCP within the useful workspace of the default robot (radius
-0.4 m, z in [-1.0, -0.55] m).
+* ``burst`` (default): the pairs go out as fast as the node takes them, far faster than the
+  robot executes them, as when a camera sees several objects at once. Each place is sent once
+  the node holds its pick (the two travel on separate topics) and has answered the pair
+  before, so that answers can be told apart; the trajectories are not waited for.
+* ``idle``: each pair is sent once the trajectory of the previous one has ended, so the robot
+  is idle whenever a pair arrives.
+
+Then :mod:`ellipath_ros.demo_report` replays the trajectories at their arrival times through
+the emulation of Jazzy's joint_trajectory_controller and prints what the robot executes:
+picks/min and the gaps between trajectories from the executed timeline, the largest deviation
+of the executed TCP from the planned paths, whether every pick and place was visited in
+order, the joint limits of the executed command, and the rejection of the bad pair.
 
 DDS stays on this host: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set to ``LOCALHOST`` unless the
 environment already sets it to a non-empty value, which is respected (this changes
@@ -37,14 +41,12 @@ environment already sets it to a non-empty value, which is respected (this chang
 else 77), so they talk to no other ``ellipath_node`` or demo; only ``/diagnostics`` is
 shared. A parameters file must therefore use the keys ``/**`` or ``/**/ellipath_node``.
 
-Exit status: 0 when every good pair was planned into a trajectory that passed every check and
-the bad pair was rejected (ERROR status, no trajectory); 1 when a check failed; 2 when the
-parameters or options are invalid; 3 on a timeout; 130 on Ctrl-C.
+Exit status: 0 when every check passed (every good pair planned and executed as planned, the
+bad pair rejected as unreachable); 1 when a check failed; 2 when the parameters or options
+are invalid; 3 on a timeout; 130 on Ctrl-C.
 """
 
 import argparse
-from dataclasses import dataclass
-from dataclasses import replace
 import math
 import os
 from pathlib import Path
@@ -53,11 +55,12 @@ import threading
 import time
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.joint_trajectory import quintic_interpolate
-from ellipath_ros.core.joint_trajectory import REST_TOLERANCE
-from ellipath_ros.core.joint_trajectory import validate_jtc
-from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.timing import PROFILES
+from ellipath_ros.demo_report import evaluate_run
+from ellipath_ros.demo_report import format_report
+from ellipath_ros.demo_report import mm_text
+from ellipath_ros.demo_report import PairOutcome
+from ellipath_ros.demo_report import ReceivedTrajectory
 import numpy as np
 
 EXIT_OK = 0
@@ -75,8 +78,14 @@ MAX_DOMAIN_ID = 232
 NAMESPACE = 'ellipath_demo'
 CLIENT_NAME = 'ellipath_demo_cell'
 SPIN_STEP = 0.01  # s, longest single wait of the client's executor
-# After a rejection or the last cycle: how long a stray trajectory has to show up.
+# After the predicted end of the last trajectory: how long a stray one has to show up.
 SETTLE = 0.2  # s
+PACINGS = ('burst', 'idle')
+# The message of the node's status for a planned pair.
+PLANNED_MESSAGE = 'planned'
+# Idle pacing: the next pair goes this long after the previous trajectory's predicted end
+# (one control period, and a little for the clocks of the two nodes).
+IDLE_MARGIN = 0.01  # s
 
 # The cell, in the base frame [m]. A conveyor runs along y at x = -0.15; the picks advance
 # along it and wrap around. The boxes, two columns of three, stand about 0.3 m away; the far
@@ -88,25 +97,6 @@ CONVEYOR_STEP = 0.035
 BOXES = tuple((x, y, z) for x, z in ((0.14, -0.80), (0.18, -0.83)) for y in (-0.08, 0.0, 0.08))
 # The deliberately bad place: 0.9 m off the axis, far outside the reach of the robot.
 BAD_PLACE = (0.90, 0.0, -0.80)
-BAD_KIND = 'unreachable'
-
-# The useful workspace of the default robot (DeltaGeometry): the TCP must stay in it.
-WORKSPACE_RADIUS = 0.40  # m
-WORKSPACE_Z = (-1.0, -0.55)  # m
-# JTC's interpolation is checked at least this often, and at least this many times per knot
-# segment, knots included.
-CHECK_PERIOD = 0.0005  # s
-MIN_SAMPLES_PER_SEGMENT = 16
-# Start and end of a trajectory: this close to where the robot is and to the place [m].
-POSITION_TOLERANCE = 1e-6
-# Relative slack on the joint limits, for rounding only.
-LIMIT_SLACK = 1e-6
-# Keys of the node's OK status (the planner's CyclePlan.metrics).
-PHI_KEY = 'transfer.phi_deg'
-APEX_KEY = 'transfer.apex_height'
-PLAN_TIME_KEY = 'plan_time'
-_MM = 1e3
-_MS = 1e3
 
 
 def add_arguments(parser):
@@ -114,6 +104,11 @@ def add_arguments(parser):
     parser.add_argument(
         '--cycles', type=_positive_int, default=DEFAULT_CYCLES,
         help='pick/place pairs to send, one of them deliberately unreachable '
+             '(default: %(default)s)')
+    parser.add_argument(
+        '--pacing', choices=PACINGS, default='burst',
+        help='burst: send the pairs as fast as the node takes them (faster than the robot '
+             'executes them); idle: send each pair once the previous trajectory has ended '
              '(default: %(default)s)')
     parser.add_argument(
         '--profile', choices=PROFILES, default=None,
@@ -126,8 +121,9 @@ def add_arguments(parser):
              'source tree or of the installed package, else the node defaults')
     parser.add_argument(
         '--timeout', type=_positive_float, default=DEFAULT_TIMEOUT,
-        help='seconds to wait for discovery and for the answer to each pair; exit status 3 '
-             'when exceeded (default: %(default)s)')
+        help='seconds to wait for discovery, for the answer to each pair and, while '
+             'trajectories are due, for the next one; exit status 3 when exceeded (default: '
+             '%(default)s)')
     parser.add_argument(
         '--domain-id', type=_domain_id, default=None,
         help=f'ROS domain id (default: ROS_DOMAIN_ID if set, else {DEFAULT_DOMAIN_ID}); DDS '
@@ -185,10 +181,6 @@ def cell_pairs(cycles):
     return pairs, bad
 
 
-# Clock difference allowed between the node's stamps and this client's receipt times [s].
-STAMP_SLACK = 0.05
-
-
 def default_params_file():
     """
     Return config/ellipath.yaml of the source tree or the installed share dir, or None.
@@ -206,349 +198,6 @@ def default_params_file():
         pass
     candidates.append(Path(sys.prefix) / 'share' / 'ellipath_ros' / relative)
     return next((path for path in candidates if path.is_file()), None)
-
-
-@dataclass(frozen=True)
-class TrajectoryCheck:
-    """
-    What the checks of one trajectory found.
-
-    Attributes
-    ----------
-    problems : tuple of str
-        One message per broken rule; empty when the trajectory is valid.
-    end_position : numpy.ndarray or None
-        TCP position at the last point [m], (3,), where the robot stops; None when unknown.
-    duration : float
-        Time of the last point [s] (NaN when unknown).
-    peak_tcp_speed, peak_tcp_accel : float
-        Largest TCP speed [m/s] and acceleration norm [m/s^2] of JTC's interpolation.
-    peak_joint_velocity, peak_joint_accel : float
-        Largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of JTC's interpolation.
-
-    """
-
-    problems: tuple
-    end_position: object = None
-    duration: float = math.nan
-    peak_tcp_speed: float = math.nan
-    peak_tcp_accel: float = math.nan
-    peak_joint_velocity: float = math.nan
-    peak_joint_accel: float = math.nan
-
-
-def check_trajectory(trajectory, start, pick, place, config):
-    """
-    Check one trajectory as joint_trajectory_controller would run it.
-
-    Parameters
-    ----------
-    trajectory : ellipath_ros.core.joint_trajectory.JointTrajectoryData
-        The trajectory as received.
-    start : array_like, shape (3,)
-        Where the robot is when the trajectory starts [m].
-    pick, place : array_like, shape (3,)
-        The pair the trajectory serves [m].
-    config : ellipath_ros.core.planner.PlannerConfig
-        The node's configuration: joint names, geometry and joint position limits, joint
-        velocity and acceleration limits, knot tolerance.
-
-    Returns
-    -------
-    TrajectoryCheck
-        The problems found (none for a valid trajectory) and the measured peaks.
-
-    """
-    try:
-        validate_jtc(trajectory, expect_names=config.joint_names)
-    except EllipathError as error:
-        # The arrays may be unusable: nothing else can be checked.
-        return TrajectoryCheck((f'validate_jtc: {error}',))
-    times = trajectory.time_from_start
-    if times.size < 2:
-        return TrajectoryCheck(('a single point: the robot does not move',))
-    geometry, limits, names = config.geometry, config.joint_limits, config.joint_names
-    problems = []
-
-    knots = forward_kinematics(trajectory.positions, geometry, strict=False)
-    if not np.linalg.norm(knots[0] - start) <= POSITION_TOLERANCE:
-        problems.append(f'starts at {_mm(knots[0])} mm, not where the robot is '
-                        f'({_mm(start)} mm)')
-    if not (np.abs(trajectory.velocities[0]).max() <= REST_TOLERANCE
-            and np.abs(trajectory.accelerations[0]).max() <= REST_TOLERANCE):
-        problems.append('does not start at rest')
-    if not np.linalg.norm(knots[-1] - place) <= POSITION_TOLERANCE:
-        problems.append(f'ends at {_mm(knots[-1])} mm, not at the place ({_mm(place)} mm)')
-
-    grid = _sample_times(times)
-    q, qdot, qddot = quintic_interpolate(trajectory, grid)
-    tcp = forward_kinematics(q, geometry, strict=False)
-    miss = np.nanmin(np.linalg.norm(tcp - pick, axis=1), initial=math.inf)
-    if not miss <= config.knot_tolerance + POSITION_TOLERANCE:
-        problems.append(f'passes {miss * _MM:.3f} mm from the pick (tolerance '
-                        f'{config.knot_tolerance * _MM:g} mm)')
-    problems.extend(_limit_problems(grid, q, qdot, qddot, geometry, limits, names))
-    problems.extend(_workspace_problems(grid, tcp))
-
-    velocity = np.gradient(tcp, grid, axis=0)
-    acceleration = np.gradient(velocity, grid, axis=0)
-    return TrajectoryCheck(
-        tuple(problems), end_position=knots[-1], duration=float(times[-1]),
-        peak_tcp_speed=_peak(np.linalg.norm(velocity, axis=1)),
-        peak_tcp_accel=_peak(np.linalg.norm(acceleration, axis=1)),
-        peak_joint_velocity=_peak(np.abs(qdot)), peak_joint_accel=_peak(np.abs(qddot)))
-
-
-def _sample_times(times):
-    """Return sample times covering every knot segment evenly, knots included."""
-    per_segment = max(MIN_SAMPLES_PER_SEGMENT,
-                      int(math.ceil(np.diff(times).max() / CHECK_PERIOD)))
-    fractions = np.arange(per_segment) / per_segment
-    grid = (times[:-1, np.newaxis] + np.diff(times)[:, np.newaxis] * fractions).ravel()
-    return np.append(grid, times[-1])
-
-
-def _limit_problems(grid, q, qdot, qddot, geometry, limits, names):
-    """Return a message for each joint quantity that leaves its limits, at its worst sample."""
-    problems = []
-    checks = (
-        ('position', np.maximum(geometry.joint_min - q, q - geometry.joint_max), q,
-         f'[{geometry.joint_min:g}, {geometry.joint_max:g}] rad',
-         LIMIT_SLACK * (geometry.joint_max - geometry.joint_min)),
-        ('velocity', np.abs(qdot) - limits.max_velocity, qdot,
-         f'|q_dot| <= {limits.max_velocity:g} rad/s', LIMIT_SLACK * limits.max_velocity),
-        ('acceleration', np.abs(qddot) - limits.max_acceleration, qddot,
-         f'|q_ddot| <= {limits.max_acceleration:g} rad/s^2',
-         LIMIT_SLACK * limits.max_acceleration))
-    for quantity, excess, values, bound, slack in checks:
-        sample, joint = np.unravel_index(int(np.argmax(excess)), excess.shape)
-        if excess[sample, joint] > slack:
-            problems.append(f'{names[joint]} {quantity} {values[sample, joint]:.6g} breaks '
-                            f'{bound} at t={grid[sample]:.4f} s')
-    return problems
-
-
-def _workspace_problems(grid, tcp):
-    """Return a message if the interpolated TCP leaves the workspace (or cannot be built)."""
-    broken = ~np.isfinite(tcp).all(axis=1)
-    if broken.any():
-        return [f'the arms cannot be assembled at t={grid[int(np.argmax(broken))]:.4f} s']
-    radius = np.hypot(tcp[:, 0], tcp[:, 1])
-    outside = ((radius > WORKSPACE_RADIUS) | (tcp[:, 2] < WORKSPACE_Z[0])
-               | (tcp[:, 2] > WORKSPACE_Z[1]))
-    if not outside.any():
-        return []
-    sample = int(np.argmax(outside))
-    return [f'TCP {_mm(tcp[sample])} mm at t={grid[sample]:.4f} s leaves the workspace '
-            f'(radius <= {WORKSPACE_RADIUS * _MM:g} mm, z in [{WORKSPACE_Z[0] * _MM:g}, '
-            f'{WORKSPACE_Z[1] * _MM:g}] mm)']
-
-
-def _peak(values):
-    """Return the largest finite entry of ``values`` (NaN if there is none)."""
-    finite = values[np.isfinite(values)]
-    return float(finite.max()) if finite.size else math.nan
-
-
-def _mm(point):
-    """Format a point [m] as whole millimetres, '(x, y, z)'."""
-    return '(' + ','.join(f'{value * _MM:4.0f}' for value in np.asarray(point)) + ')'
-
-
-@dataclass
-class CycleResult:
-    """
-    One pick/place pair: what was sent, what came back, and the verdict.
-
-    Attributes
-    ----------
-    index : int
-        0-based cycle number.
-    pick, place : numpy.ndarray
-        The pair [m].
-    bad : bool
-        True for the deliberately bad pair.
-    verdict : str
-        ``'ok'``, ``'rejected_expected'``, ``'rejected_unexpected'``, ``'invalid'`` (a
-        trajectory failed a check), ``'not_rejected'`` (the bad pair was planned) or
-        ``'timeout'``.
-    reason : str
-        The rejection reason, or the problems found.
-    values : dict
-        The key/values of the node's final status for this pair.
-    check : TrajectoryCheck or None
-        The check of the trajectory, if one arrived.
-    round_trip : float
-        Place sent to answer received [s] (NaN on a timeout).
-    invalid_published : int
-        Trajectories published for this pair that should not have been (failed checks,
-        published with a rejection, or more than one).
-
-    """
-
-    index: int
-    pick: np.ndarray
-    place: np.ndarray
-    bad: bool
-    verdict: str = 'timeout'
-    reason: str = ''
-    values: dict = None
-    check: TrajectoryCheck = None
-    round_trip: float = math.nan
-    invalid_published: int = 0
-
-    def number(self, key):
-        """Return the node's value ``key`` as a float (NaN when missing or not a number)."""
-        try:
-            return float((self.values or {})[key])
-        except (KeyError, ValueError):
-            return math.nan
-
-
-def evaluate_cycle(result, trajectories, statuses, start, config):
-    """
-    Judge one pair from the messages that answered it; fill in ``result``.
-
-    Parameters
-    ----------
-    result : CycleResult
-        The pair; its verdict, reason, values, check and invalid_published are set here.
-    trajectories : list of (JointTrajectoryData or None, tuple of str)
-        The trajectories received for the pair, each with the problems of its message
-        (header, malformed points; the data is None when it cannot be read).
-    statuses : list of (str, str, dict)
-        The node's statuses about the pair in arrival order: level ('OK', 'WARN', 'ERROR'),
-        message and key/values.
-    start : numpy.ndarray
-        Where the robot is [m].
-    config : ellipath_ros.core.planner.PlannerConfig
-        The node's configuration.
-
-    """
-    errors = [(message, values) for level, message, values in statuses if level == 'ERROR']
-    result.values = next((values for level, _, values in reversed(statuses) if level != 'WARN'),
-                         {})
-    checks = []
-    for data, message_problems in trajectories:
-        check = (TrajectoryCheck(()) if data is None else
-                 check_trajectory(data, start, result.pick, result.place, config))
-        checks.append(replace(check, problems=message_problems + check.problems))
-    result.check = checks[0] if checks else None
-    if errors:
-        message, values = errors[0]
-        result.reason = message
-        if checks:
-            result.verdict, result.invalid_published = 'invalid', len(checks)
-            result.reason = f'a trajectory was published despite the rejection: {message}'
-        elif result.bad and values.get('kind') == BAD_KIND:
-            result.verdict = 'rejected_expected'
-        else:
-            result.verdict = 'rejected_unexpected'
-        return
-    problems = list(checks[0].problems) if checks else ['no trajectory']
-    if len(checks) > 1:
-        problems.insert(0, f'{len(checks)} trajectories for one pair')
-    result.invalid_published = bool(checks and checks[0].problems) + max(len(checks) - 1, 0)
-    if problems:
-        result.verdict, result.reason = 'invalid', '; '.join(problems)
-    elif result.bad:
-        result.verdict = 'not_rejected'
-        result.reason = f'expected a rejection ({BAD_KIND}) of the place {_mm(result.place)} mm'
-    else:
-        result.verdict = 'ok'
-
-
-STATUS_LABELS = {
-    'ok': 'OK',
-    'rejected_expected': 'REJECTED (expected)',
-    'rejected_unexpected': 'REJECTED (unexpected)',
-    'invalid': 'INVALID',
-    'not_rejected': 'PLANNED (bad pair)',
-    'timeout': 'TIMEOUT',
-}
-
-# Table columns: title, unit, width, format, value of a CycleResult (NaN prints as '-').
-_COLUMNS = (
-    ('phi', '[deg]', 5, '.1f', lambda result: result.number(PHI_KEY)),
-    ('apex', '[mm]', 5, '.1f', lambda result: result.number(APEX_KEY) * _MM),
-    ('duration', '[ms]', 8, '.1f', lambda result: _checked(result, 'duration') * _MS),
-    ('v_tcp', '[m/s]', 6, '.2f', lambda result: _checked(result, 'peak_tcp_speed')),
-    ('a_tcp', '[m/s2]', 6, '.1f', lambda result: _checked(result, 'peak_tcp_accel')),
-    ('qd', '[rad/s]', 7, '.2f', lambda result: _checked(result, 'peak_joint_velocity')),
-    ('qdd', '[rad/s2]', 8, '.1f', lambda result: _checked(result, 'peak_joint_accel')),
-    ('plan', '[ms]', 6, '.1f', lambda result: result.number(PLAN_TIME_KEY) * _MS),
-)
-_PAIR_WIDTH = 36
-
-
-def _checked(result, name):
-    """Return a measured value of the cycle's trajectory, NaN without one."""
-    return getattr(result.check, name) if result.check is not None else math.nan
-
-
-def table_header():
-    """Return the two header lines of the cycle table."""
-    titles = [f'{"#":>4}  {"pick -> place":<{_PAIR_WIDTH}}']
-    units = [f'{"":>4}  {"[mm]":<{_PAIR_WIDTH}}']
-    for title, unit, width, _, _ in _COLUMNS:
-        titles.append(f'{title:>{width}}')
-        units.append(f'{unit:>{width}}')
-    return ' '.join(titles) + '  status\n' + ' '.join(units) + '\n'
-
-
-def table_row(result):
-    """Return the table line of one cycle."""
-    cells = [f'{result.index + 1:>4}  '
-             f'{_mm(result.pick) + " -> " + _mm(result.place):<{_PAIR_WIDTH}}']
-    for _, _, width, spec, value_of in _COLUMNS:
-        value = value_of(result)
-        cells.append(f'{value:>{width}{spec}}' if math.isfinite(value) else f'{"-":>{width}}')
-    status = STATUS_LABELS[result.verdict]
-    if result.reason:
-        status += ': ' + ' '.join(result.reason.split())
-    return ' '.join(cells) + '  ' + status + '\n'
-
-
-def summary(results, cycles, wall_time, config):
-    """Return the summary lines of a run under the node's configuration ``config``."""
-    verdicts = [result.verdict for result in results]
-    planned = [result for result in results if result.check is not None]
-    latencies = [result.number(PLAN_TIME_KEY) for result in planned]
-    latencies = [value for value in latencies if math.isfinite(value)]
-    durations = [result.check.duration for result in planned
-                 if math.isfinite(result.check.duration)]
-    round_trips = [result.round_trip for result in planned]
-    lines = [
-        f'cycles: {len(results)} of {cycles} run, {len(planned)} planned, '
-        f'{verdicts.count("ok")} valid, {verdicts.count("rejected_expected")} rejected as '
-        f'expected, {verdicts.count("rejected_unexpected")} rejected unexpectedly, '
-        f'{sum(result.invalid_published for result in results)} invalid published',
-    ]
-    if latencies:
-        lines.append(f'plan latency: mean {np.mean(latencies) * _MS:.1f} ms, max '
-                     f'{np.max(latencies) * _MS:.1f} ms; place sent to trajectory received: '
-                     f'mean {np.mean(round_trips) * _MS:.1f} ms')
-    if planned:
-        limits, joints = config.limits, config.joint_limits
-        lines.append(
-            'peaks of the interpolated trajectories: TCP '
-            f'{_peak_of(planned, "peak_tcp_speed"):.2f} m/s (limit {limits.max_speed:g}), '
-            f'{_peak_of(planned, "peak_tcp_accel"):.1f} m/s2 (limit {limits.max_accel:g}); '
-            f'joints {_peak_of(planned, "peak_joint_velocity"):.2f} rad/s (limit '
-            f'{joints.max_velocity:g}), {_peak_of(planned, "peak_joint_accel"):.1f} rad/s2 '
-            f'(limit {joints.max_acceleration:g})')
-    if durations:
-        mean = float(np.mean(durations))
-        lines.append(f'cycle duration: mean {mean * _MS:.1f} ms -> throughput '
-                     f'{60.0 / mean:.1f} picks/min (trajectories back to back)')
-    lines.append(f'wall time: {wall_time:.2f} s (discovery and cycles)')
-    return ''.join(line + '\n' for line in lines)
-
-
-def _peak_of(results, name):
-    """Return the largest measured ``name`` over the trajectories of ``results``."""
-    values = [getattr(result.check, name) for result in results]
-    return max((value for value in values if math.isfinite(value)), default=math.nan)
 
 
 def run_demo(args):
@@ -653,10 +302,10 @@ def _run_in_context(args, context, params_file, domain_id):
 
 
 def _run_cycles(args, cell, settings, header):
-    """Send every pair, print the table and the summary; return the exit status."""
+    """Send every pair, collect the answers, print the report; return the exit status."""
     out = sys.stdout
     pairs, bad = cell_pairs(args.cycles)
-    out.write(f'{header}\npair {bad + 1} is deliberately bad: place {_mm(BAD_PLACE)} mm is '
+    out.write(f'{header}\npair {bad + 1} is deliberately bad: place {mm_text(BAD_PLACE)} mm is '
               'out of reach\n')
     out.flush()
     started = time.monotonic()
@@ -665,51 +314,46 @@ def _run_cycles(args, cell, settings, header):
         status, message = failure
         sys.stderr.write(f'ellipath demo: {message}\n')
         return status
-    out.write('\n' + table_header())
-    out.flush()
-    results = []
+    outcomes = [PairOutcome(index, pick, place, index == bad)
+                for index, (pick, place) in enumerate(pairs)]
+    start_time = time.time()
     try:
-        _send_pairs(pairs, bad, args.timeout, cell, settings, results, out)
+        answered = _send_pairs(outcomes, args, cell)
+        sending = time.time() - start_time
+        how = ('burst: each pair as soon as the node had answered the one before' if
+               args.pacing == 'burst' else 'idle: each pair once the previous trajectory had '
+               'ended')
+        out.write(f'sent {answered} of {len(outcomes)} pairs in {sending:.2f} s ({how}); '
+                  'waiting for the trajectories\n')
+        out.flush()
+        complete = answered == len(outcomes) and cell.wait_for_trajectories(
+            sum(outcome.level == 'OK' for outcome in outcomes), args.timeout, SETTLE)
     except KeyboardInterrupt:
-        # Ctrl-C: stop sending, and still report the cycles that completed.
-        elapsed = time.monotonic() - started
-        out.write('\n' + summary(results, args.cycles, elapsed, settings.planner))
-        out.write(f'result: INTERRUPTED after {len(results)} of {args.cycles} cycles\n')
+        # Ctrl-C: stop, and still say how far the run got.
+        sent = sum(outcome.level is not None for outcome in outcomes)
+        out.write(f'result: INTERRUPTED after {sent} of {len(outcomes)} pairs answered\n')
         out.flush()
         return EXIT_INTERRUPTED
-    stray = cell.stray_trajectories(SETTLE)
-    verdicts = [result.verdict for result in results]
-    passed = (not stray and all(verdict in ('ok', 'rejected_expected') for verdict in verdicts)
-              and not any(result.invalid_published for result in results))
-    elapsed = time.monotonic() - started
-    out.write('\n' + summary(results, args.cycles, elapsed, settings.planner))
-    if stray:
-        out.write(f'invalid: {stray} trajectories arrived after the last cycle\n')
-    out.write(f'result: {"PASS" if passed else "FAIL"}\n')
+    report = evaluate_run(outcomes, cell.received(), settings.home_position, settings.planner,
+                          start_time, timed_out=not complete)
+    out.write('\n' + format_report(report, settings.planner))
+    out.write(f'wall time: {time.monotonic() - started:.2f} s (discovery, sending, '
+              'execution)\n')
     out.flush()
-    if 'timeout' in verdicts:
-        return EXIT_TIMEOUT
-    return EXIT_OK if passed else EXIT_FAILED
+    if report.passed:
+        return EXIT_OK
+    return EXIT_TIMEOUT if report.timed_out else EXIT_FAILED
 
 
-def _send_pairs(pairs, bad, timeout, cell, settings, results, out):
-    """Run the cycles one by one, appending to ``results`` and printing each row at once."""
-    start = np.asarray(settings.home_position, dtype=float)  # no joint_states: the node's too
-    for index, (pick, place) in enumerate(pairs):
-        result = CycleResult(index, pick, place, index == bad)
-        answer = cell.exchange(pick, place, timeout)
-        if answer is None:
-            result.reason = f'no answer within {timeout:g} s'
-        else:
-            trajectories, statuses, result.round_trip = answer
-            evaluate_cycle(result, trajectories, statuses, start, settings.planner)
-            if result.check is not None and result.check.end_position is not None:
-                start = result.check.end_position  # the robot stops where it ended
-        results.append(result)
-        out.write(table_row(result))
-        out.flush()
-        if answer is None:
-            return
+def _send_pairs(outcomes, args, cell):
+    """Send the pairs with the chosen pacing, filling in the answers; return how many."""
+    for count, outcome in enumerate(outcomes):
+        if not cell.send_pair(outcome, args.timeout):
+            return count
+        if args.pacing == 'idle' and outcome.level == 'OK':
+            if not cell.wait_until_idle(args.timeout, IDLE_MARGIN):
+                return count + 1
+    return len(outcomes)
 
 
 _LEVELS = {b'\x00': 'OK', b'\x01': 'WARN', b'\x02': 'ERROR', b'\x03': 'STALE'}
@@ -730,7 +374,7 @@ class _Cell:
         The planning node (its names filter the diagnostics; its pending pick count tells when
         a pick has been taken).
     settings : ellipath_ros.parameters.NodeSettings
-        The node's settings (frame and header stamp convention).
+        The node's settings (frame of the poses, queue depth).
 
     """
 
@@ -749,18 +393,23 @@ class _Cell:
         depth = settings.queue_depth
         self._pick_publisher = self.node.create_publisher(PoseStamped, 'pick_pose', depth)
         self._place_publisher = self.node.create_publisher(PoseStamped, 'place_pose', depth)
-        self._trajectories = []  # (message, wall-clock time of receipt)
-        self._busy_until = None  # wall-clock time the last received trajectory ends
+        self._trajectories = []  # (message, system-clock time of reception [s])
         self._statuses = []  # (level, message, values) of the planner's statuses
-        self._consumed = 0  # trajectories already handed out by exchange()
+        self._answered_trajectories = 0  # trajectories waited for by wait_until_idle()
         self._trajectory_subscription = self.node.create_subscription(
-            JointTrajectory, 'joint_trajectory',
-            lambda message: self._trajectories.append((message, time.time())), depth)
+            JointTrajectory, 'joint_trajectory', self._on_trajectory, depth)
         # /diagnostics is shared by every node of the domain: keep a longer queue.
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
                                       100)
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
+
+    def _on_trajectory(self, message, info):
+        """Keep a trajectory with the time the middleware received it."""
+        # The callback may run some milliseconds later (this process also plans): the
+        # middleware's reception time is when the controller, another subscriber, has it.
+        received = info.get('received_timestamp', 0) * 1e-9
+        self._trajectories.append((message, received or time.time()))
 
     def close(self):
         """Stop the executor and destroy the node."""
@@ -815,23 +464,18 @@ class _Cell:
         message.pose.orientation.w = 1.0
         return message
 
-    def exchange(self, pick, place, timeout):
+    def send_pair(self, outcome, timeout):
         """
-        Send one pair and collect the planner's answer.
+        Send one pair and wait for the node's answer (not for its trajectory).
 
-        Returns
-        -------
-        tuple or None
-            (trajectories as :func:`evaluate_cycle` takes them, statuses as (level, message,
-            values), place sent to answer received [s]); None when the answer did not come
-            within ``timeout`` seconds (at each of the two steps).
-
+        Fills in ``outcome`` (sent time, answer level, message, values, round trip); returns
+        False when the pick was not taken or no answer came within ``timeout`` seconds.
         """
         first_status = len(self._statuses)
         # One stamp for both poses: they pair in the 'stamp' pairing mode too.
         stamp = self.node.get_clock().now().to_msg()
         pending = self._planner.pending_pick_count
-        self._pick_publisher.publish(self._pose(pick, stamp))
+        self._pick_publisher.publish(self._pose(outcome.pick, stamp))
 
         # Pick and place travel on separate topics and could overtake each other: send the
         # place only once the node holds the pick or has said why it does not.
@@ -841,55 +485,87 @@ class _Cell:
                            for _, _, values in self._statuses[first_status:]))
 
         if not self._spin_until(pick_taken, timeout):
-            return None
+            return False
+        first_status = len(self._statuses)
+        outcome.sent_time = time.time()
         sent = time.perf_counter()
-        self._place_publisher.publish(self._pose(place, stamp))
+        self._place_publisher.publish(self._pose(outcome.place, stamp))
 
-        def rejected():
-            return any(level == 'ERROR' and values.get('topic') == 'place_pose'
-                       for level, _, values in self._statuses[first_status:])
+        # The answer is the 'planned' status or the place's rejection; other statuses
+        # (warnings, news of earlier pairs such as their release) are not it.
+        def answer():
+            return next(((level, message, values)
+                         for level, message, values in self._statuses[first_status:]
+                         if (level == 'OK' and message == PLANNED_MESSAGE)
+                         or (level == 'ERROR' and values.get('topic') == 'place_pose')),
+                        None)
 
-        def answered():
-            planned = (any(level == 'OK' for level, _, _ in self._statuses[first_status:])
-                       and len(self._trajectories) > self._consumed)
-            return planned or rejected()
+        if not self._spin_until(lambda: answer() is not None, timeout):
+            return False
+        outcome.round_trip = time.perf_counter() - sent
+        outcome.level, outcome.message, outcome.values = answer()
+        return True
 
-        if not self._spin_until(answered, timeout):
+    def _busy_until(self):
+        """Predicted end of the last trajectory received [s] (system clock), or None."""
+        if not self._trajectories:
             return None
-        round_trip = time.perf_counter() - sent
-        if rejected():
-            self._spin_until(lambda: False, SETTLE)  # no trajectory may follow a rejection
-        trajectories = [self._read(message, received)
-                        for message, received in self._trajectories[self._consumed:]]
-        self._consumed = len(self._trajectories)
-        return trajectories, self._statuses[first_status:], round_trip
+        message, received = self._trajectories[-1]
+        stamp = message.header.stamp.sec + 1e-9 * message.header.stamp.nanosec
+        last = message.points[-1].time_from_start if message.points else None
+        duration = 0.0 if last is None else last.sec + 1e-9 * last.nanosec
+        return (stamp or received) + duration
+
+    def wait_until_idle(self, timeout, margin):
+        """
+        Wait for the trajectory of the pair just planned, then until it has ended.
+
+        Returns False when the trajectory did not come within ``timeout`` seconds.
+        """
+        expected = self._answered_trajectories + 1
+        if not self._spin_until(lambda: len(self._trajectories) >= expected, timeout):
+            return False
+        self._answered_trajectories = expected
+        idle_from = self._busy_until() + margin
+        self._spin_until(lambda: time.time() >= idle_from,
+                         max(0.0, idle_from - time.time()) + SPIN_STEP)
+        return True
+
+    def wait_for_trajectories(self, count, timeout, settle):
+        """
+        Wait until ``count`` trajectories have arrived and the last one has ended.
+
+        Each wait for the next trajectory is bounded by ``timeout`` (a node that holds
+        trajectories releases them as the robot gets through them). Then spin ``settle``
+        seconds more past the predicted end, so that strays show. Returns False on a timeout.
+        """
+        while len(self._trajectories) < count:
+            expected = len(self._trajectories) + 1
+            if not self._spin_until(lambda: len(self._trajectories) >= expected, timeout):
+                return False
+        end = self._busy_until()
+        wait = settle if end is None else max(0.0, end - time.time()) + settle
+        self._spin_until(lambda: False, wait)
+        return True
+
+    def received(self):
+        """Return every trajectory received, as ReceivedTrajectory, in arrival order."""
+        return [self._read(message, received) for message, received in self._trajectories]
 
     def _read(self, message, received):
-        """Return (JointTrajectoryData or None, problems of the message) of a trajectory."""
+        """Return a trajectory message as ReceivedTrajectory, with the problems of its header."""
         from ellipath_ros.conversions import joint_trajectory_data
 
         problems = []
         if message.header.frame_id != self._settings.frame_id:
             problems.append(f'header.frame_id {message.header.frame_id!r}, expected '
                             f'{self._settings.frame_id!r}')
-        stamp = message.header.stamp.sec + 1e-9 * message.header.stamp.nanosec
-        running = self._busy_until is not None and received < self._busy_until - STAMP_SLACK
-        if running and abs(stamp - self._busy_until) > STAMP_SLACK:
-            problems.append(f'header.stamp {stamp:.3f} s while the last trajectory runs until '
-                            f'{self._busy_until:.3f} s: the robot would be cut short')
-        elif not running and self._settings.header_stamp == 'zero' and stamp:
-            problems.append('header.stamp is not zero (JTC would not start it on receipt)')
-        if message.points:
-            last = message.points[-1].time_from_start
-            self._busy_until = ((stamp or received) + last.sec + 1e-9 * last.nanosec)
         if any(len(point.effort) for point in message.points):
             problems.append('effort entries (JTC rejects them without an effort interface)')
+        stamp = message.header.stamp.sec + 1e-9 * message.header.stamp.nanosec
         try:
-            return joint_trajectory_data(message), tuple(problems)
+            data = joint_trajectory_data(message)
         except EllipathError as error:
-            return None, tuple(problems + [f'malformed: {error}'])
-
-    def stray_trajectories(self, settle):
-        """Spin ``settle`` seconds; return how many trajectories came after the last pair."""
-        self._spin_until(lambda: False, settle)
-        return len(self._trajectories) - self._consumed
+            data = None
+            problems.append(f'malformed: {error}')
+        return ReceivedTrajectory(data, stamp, received, tuple(problems))

@@ -283,7 +283,7 @@ def quintic_interpolate(traj, t):
         segment = np.clip(np.searchsorted(knots, times, side='right') - 1, 0, knots.size - 2)
         coefficients = _quintic_coefficients(traj, segment, segment + 1)
         offset = np.clip(times - knots[segment], 0.0, None)
-        result = tuple(array[:, 0] for array in _evaluate_quintic(
+        result = tuple(array[:, 0] for array in evaluate_polynomials(
             coefficients, offset[:, np.newaxis]))
         after = times >= knots[-1]
         for array, source in zip(result, (traj.positions, traj.velocities,
@@ -296,24 +296,79 @@ def _quintic_coefficients(knots, start, end):
     """
     Polynomial coefficients in powers of ``t - t_start``, shape (S, 6, 3).
 
-    Same formulas as JTC's quintic branch; ``knots`` has the attributes of
-    JointTrajectoryData, ``start`` and ``end`` are index arrays (S,).
+    ``knots`` has the attributes of JointTrajectoryData, ``start`` and ``end`` are index
+    arrays (S,); see :func:`interpolation_coefficients`.
     """
-    h = (knots.time_from_start[end] - knots.time_from_start[start])[:, np.newaxis]
-    q0, v0, a0 = knots.positions[start], knots.velocities[start], knots.accelerations[start]
-    q1, v1, a1 = knots.positions[end], knots.velocities[end], knots.accelerations[end]
+    return interpolation_coefficients(
+        knots.time_from_start[end] - knots.time_from_start[start],
+        knots.positions[start], knots.positions[end], knots.velocities[start],
+        knots.velocities[end], knots.accelerations[start], knots.accelerations[end])
+
+
+def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=None):
+    """
+    Coefficients of JTC's ``Trajectory::interpolate_between_points``, shape (S, 6, 3).
+
+    Row ``[s, k, j]`` multiplies ``(t - t_start)^k`` for joint j of segment s; unused orders
+    are 0, so one evaluation (:func:`evaluate_polynomials`) serves every degree. JTC picks
+    the degree from which fields both ends carry (``None`` = empty in the message):
+
+    * velocities and accelerations: quintic matching p, v, a at both ends;
+    * velocities only: cubic matching p, v;
+    * neither: linear in p (constant velocity, zero acceleration);
+    * accelerations without velocities: JTC (Jazzy) has no branch for this case and leaves
+      its freshly zeroed output, so it commands position 0 rad, velocity 0, acceleration 0;
+      reproduced here because that is what the controller does.
+
+    Parameters
+    ----------
+    duration : array_like, shape (S,)
+        Segment lengths [s], > 0.
+    q0, q1 : array_like, shape (S, 3)
+        Positions at the start and end [rad].
+    v0, v1 : array_like, shape (S, 3), or None
+        Velocities [rad/s].
+    a0, a1 : array_like, shape (S, 3), or None
+        Accelerations [rad/s^2].
+
+    Returns
+    -------
+    numpy.ndarray, shape (S, 6, 3)
+
+    """
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    h = np.asarray(duration, dtype=float)[:, np.newaxis]
+    coefficients = np.zeros((q0.shape[0], 6, q0.shape[1]))
+    has_velocity = v0 is not None and v1 is not None
+    has_acceleration = a0 is not None and a1 is not None
+    if has_acceleration and not has_velocity:
+        return coefficients
     dq = q1 - q0
+    coefficients[:, 0] = q0
+    if not has_velocity:
+        coefficients[:, 1] = dq / h
+        return coefficients
+    v0, v1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
     h2 = h * h
-    c3 = (20.0 * dq - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (2.0 * h2 * h)
-    c4 = (-30.0 * dq + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1) * h2) / (
-        2.0 * h2 * h2)
-    c5 = (12.0 * dq - 6.0 * (v1 + v0) * h - (a0 - a1) * h2) / (2.0 * h2 * h2 * h)
-    return np.stack([q0, v0, 0.5 * a0, c3, c4, c5], axis=1)
+    coefficients[:, 1] = v0
+    if not has_acceleration:
+        coefficients[:, 2] = (3.0 * dq - (2.0 * v0 + v1) * h) / h2
+        coefficients[:, 3] = (-2.0 * dq + (v0 + v1) * h) / (h2 * h)
+        return coefficients
+    a0, a1 = np.asarray(a0, dtype=float), np.asarray(a1, dtype=float)
+    coefficients[:, 2] = 0.5 * a0
+    coefficients[:, 3] = (20.0 * dq - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (
+        2.0 * h2 * h)
+    coefficients[:, 4] = (-30.0 * dq + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1)
+                          * h2) / (2.0 * h2 * h2)
+    coefficients[:, 5] = (12.0 * dq - 6.0 * (v1 + v0) * h - (a0 - a1) * h2) / (
+        2.0 * h2 * h2 * h)
+    return coefficients
 
 
-def _evaluate_quintic(coefficients, offset, derivatives=True):
+def evaluate_polynomials(coefficients, offset, derivatives=True):
     """
-    Position, velocity, acceleration of polynomials (S, 6, 3) at offsets (S, M).
+    Position, velocity, acceleration of polynomials (S, 6, 3) at offsets (S, M) [s].
 
     Returns three arrays of shape (S, M, 3), or only the positions if not ``derivatives``.
     """
@@ -444,7 +499,7 @@ def _segment_errors(motion, geometry, knots, start, end, fractions):
     length = knots.time_from_start[end] - t0
     offset = length[:, np.newaxis] * fractions
     coefficients = _quintic_coefficients(knots, start, end)
-    q = _evaluate_quintic(coefficients, offset, derivatives=False).reshape(-1, 3)
+    q = evaluate_polynomials(coefficients, offset, derivatives=False).reshape(-1, 3)
     planned = _evaluate(motion, (t0[:, np.newaxis] + offset).ravel())[0]
     reached = forward_kinematics(q, geometry, strict=False)
     error = np.linalg.norm(reached - planned, axis=1).reshape(offset.shape)
