@@ -29,6 +29,7 @@ import platform
 import subprocess
 import sys
 
+from ellipath_ros.bench import format_report
 from ellipath_ros.bench.latency import latency_stats
 from ellipath_ros.bench.latency import MIN_HORIZONTAL_OFFSET
 from ellipath_ros.bench.latency import random_pairs
@@ -166,6 +167,16 @@ def test_progress_goes_to_stderr(report):
     for section in ('cycle', 'request', 'leg', 'curvature request', 'message', 'executed',
                     'e2e'):
         assert f'ellipath bench: {section} ' in stderr
+
+
+def test_the_human_report_shows_every_section(report):
+    result, _ = report
+    text = format_report(result)
+    for name, stats in result['latency'].items():
+        assert f"| {name[:-3]} | {stats['p50']:.1f} | {stats['p99']:.1f} |" in text
+    assert text.count("| paper's example |") == text.count('| 25-305-25 mm |') > 0
+    assert "executed (JTC's quintic" in text
+    assert '150-160' in text and 'quoted' in text
 
 
 def test_bad_counts_are_argument_errors(ros_env):

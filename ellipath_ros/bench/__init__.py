@@ -165,10 +165,11 @@ def run_bench(mode='full', pairs=None, e2e_pairs=None, seed=None, domain_id=None
                                  domain_id, budgets['e2e'], progress)
         latency['e2e_ms'] = latency_stats(e2e['times'])
         e2e_notes = {'budget_reached': e2e['budget_reached'], 'requested': e2e['requested'],
-                     'mismatched': e2e['mismatched'], 'domain_id': domain_id}
+                     'budget_s': budgets['e2e'], 'mismatched': e2e['mismatched'],
+                     'domain_id': domain_id}
     except EndToEndError as error:
         latency['e2e_ms'] = latency_stats([])
-        e2e_notes = {'error': str(error), 'domain_id': domain_id}
+        e2e_notes = {'error': str(error), 'budget_s': budgets['e2e'], 'domain_id': domain_id}
     result['latency'] = latency
     result['latency_notes'] = {
         **{name: {'budget_reached': section.budget_reached, 'requested': section.requested,
@@ -227,12 +228,17 @@ def format_report(result):
     lines += ['', f"executed (JTC's quintic through the published points, {executed['n']} "
               f"requests): worst speed {executed['speed']:.3f}, acceleration "
               f"{executed['accel']:.3f}, jerk {executed['jerk']:.3f} x the limits", '',
+              'planned durations; TOPP-RA bounds without jerk limit, without and with the '
+              'cap at the joins:', '',
               '| cycle | join | max accel jump [m/s²] | profile | duration [s] | '
-              'TOPP-RA bound [s] | ratio |', '|---|---|---|---|---|---|---|']
+              'bound [s] | ratio | bound, join cap [s] | ratio |', '|' + '---|' * 9]
     for row in result['cycle']:
+        capped = row.get('topp_ra_bound_join_capped_s')
         lines.append(f"| {row['case']} | {row['join']} | {row['max_accel_jump']:g} | "
                      f"{row['profile']} | {row['duration_s']:.4f} | "
-                     f"{row['topp_ra_bound_s']:.4f} | {row['ratio_to_bound']:.3f} |")
+                     f"{row['topp_ra_bound_s']:.4f} | {row['ratio_to_bound']:.3f} | "
+                     f"{_number(capped, '.4f')} | "
+                     f"{_number(capped and row['duration_s'] / capped, '.3f')} |")
     picks = result['picks_per_min']
     reference = picks['reference']
     lines += ['', f"picks/min, {picks['cycle']} cycle, dwell "
