@@ -25,6 +25,7 @@ demo: $(BIN)/ellipath
 test: $(BIN)/ellipath
 	$(BIN)/python -m pytest -q
 
+# The benchmark of README.md's Performance section: about 3 min (`ellipath bench --quick`: 30 s).
 bench: $(BIN)/ellipath
 	$(BIN)/ellipath bench
 
