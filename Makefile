@@ -8,7 +8,7 @@ export AMENT_PREFIX_PATH ?= $(abspath $(VENV))
 
 .PHONY: demo test lint bench figures colcon clean
 
-SOURCES := $(shell find ellipath_ros config resource -type f -not -name '*.pyc')
+SOURCES := $(shell find ellipath_ros config launch resource -type f -not -name '*.pyc')
 
 $(BIN)/ellipath: setup.py setup.cfg requirements-dev.txt package.xml $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -25,8 +25,14 @@ demo: $(BIN)/ellipath
 test: $(BIN)/ellipath
 	$(BIN)/python -m pytest -q
 
+# The benchmark of README.md's Performance section: about 3 min (`ellipath bench --quick`: 30 s).
 bench: $(BIN)/ellipath
 	$(BIN)/ellipath bench
+
+# The figures that README.md and docs/paper_reproduction.md embed (the paper's example, off-axis
+# so that the three joint curves of Figure 7 differ). Commit them after regenerating.
+figures: $(BIN)/ellipath
+	$(BIN)/ellipath plot --pick -0.15 0.1 -0.8 --place 0.15 0.1 -0.75 --out docs/figures
 
 colcon: $(BIN)/ellipath
 	rm -rf build/colcon
@@ -35,6 +41,7 @@ colcon: $(BIN)/ellipath
 	test -x build/colcon/install/ellipath_ros/lib/ellipath_ros/ellipath_node
 	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/ellipath.yaml
 	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/config/paper.yaml
+	test -f build/colcon/install/ellipath_ros/share/ellipath_ros/launch/ellipath.launch.py
 
 clean:
 	rm -rf $(VENV) build figures *.egg-info .pytest_cache

@@ -28,6 +28,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     python_requires='>=3.10',
     install_requires=['setuptools', 'numpy', 'ruckig>=0.12'],
@@ -41,7 +42,6 @@ setup(
     maintainer_email='maintainers@ellipath.invalid',
     description='Elliptical pick-and-place trajectory planner for Delta robots (ROS 2 Jazzy).',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'ellipath = ellipath_ros.cli:main',

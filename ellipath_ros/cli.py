@@ -17,8 +17,8 @@ The ``ellipath`` command: plan, bench, demo and plot, with the node's defaults.
 
 ``ellipath plan`` calls the core directly (no ROS needed); ``demo`` starts
 the ROS 2 node; ``plot`` needs the ``plot`` extra and ``bench`` the ``bench``
-extra. Exit status 2 means a rejected input (the reason on stderr, or a JSON
-``error`` object on stdout with ``--json``).
+extra. Exit status 2 means a rejected input or malformed arguments (the
+reason on stderr, or a JSON ``error`` object on stdout with ``--json``).
 """
 
 import argparse
@@ -53,6 +53,21 @@ _PLAN_OPTIONS = (
     ('--output-mode', 'output_mode', str, 'joint trajectory as knots or samples'),
     ('--sample-period', 'sample_period', float, 'period of samples output [s]'),
 )
+
+
+class _ArgumentsRejected(Exception):
+    """Malformed command-line arguments, raised instead of argparse's exit."""
+
+    def __init__(self, parser, message):
+        super().__init__(message)
+        self.parser = parser
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser (and subparsers) that lets ``main`` report its errors as JSON."""
+
+    def error(self, message):
+        raise _ArgumentsRejected(self, message)
 
 
 def _add_plan_arguments(parser):
@@ -150,19 +165,28 @@ def _finite(value):
 
 
 def _run_bench(args):
-    from ellipath_ros.bench import format_table, run_benchmark
+    from ellipath_ros.bench import format_report, run_bench
     try:
-        rows = run_benchmark(repeats=args.repeats)
+        result = run_bench('quick' if args.quick else 'full', pairs=args.pairs,
+                           e2e_pairs=args.e2e_pairs, seed=args.seed, domain_id=args.domain_id)
     except ImportError as error:
-        sys.stderr.write(f'ellipath bench: {error}\n')
+        if args.json:
+            sys.stdout.write(json.dumps({'error': {'kind': 'missing_dependency',
+                                                   'message': str(error)}}) + '\n')
+        else:
+            sys.stderr.write(f'ellipath bench: {error}\n')
         return 2
-    sys.stdout.write(format_table(rows) + '\n')
-    return 0
+    if args.json:
+        sys.stdout.write(json.dumps(_finite(result), allow_nan=False) + '\n')
+    else:
+        sys.stdout.write(format_report(result))
+    # The end-to-end section failed (the node did not start or answer): say so by the status.
+    return 1 if 'error' in result['latency_notes']['e2e_ms'] else 0
 
 
 def _run_plot(args):
     try:
-        from ellipath_ros.plotting import write_figures
+        from ellipath_ros.paper.plotting import write_figures
         config = _config_from(args)
         written = write_figures(args.pick, args.place, args.out, config)
     except ImportError as error:
@@ -183,7 +207,7 @@ def _run_demo(args):
 
 def build_parser():
     """Return the argument parser of the ``ellipath`` command."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog='ellipath', description='Elliptical pick-and-place planning for Delta robots '
         '(Choe et al., 2023), beyond the paper where it is weak.')
     commands = parser.add_subparsers(dest='command', required=True)
@@ -194,14 +218,27 @@ def build_parser():
     _add_plan_arguments(plot)
     plot.add_argument('--out', default='figures', help='output folder (default: %(default)s)')
     plot.set_defaults(run=_run_plot)
+    # The demo's options and argument types (importing the demo needs no ROS).
+    from ellipath_ros.demo import _domain_id, _positive_int, add_arguments
     bench = commands.add_parser(
-        'bench', help='compare the profiles with the TOPP-RA bound; planning time')
-    bench.add_argument('--repeats', type=int, default=20,
-                       help='plans per case for the timing median (default: %(default)s)')
+        'bench', help='planning latency, end-to-end latency, cycle times against the TOPP-RA '
+        'bound, executed peaks and picks/min (needs .[bench])')
+    bench.add_argument('--quick', action='store_true',
+                       help='fewer pairs and shorter budgets: about 30 s instead of 3 min')
+    bench.add_argument('--json', action='store_true', help='print one JSON object')
+    bench.add_argument('--pairs', type=_positive_int, default=None,
+                       help='random pick/place pairs of the in-process sections (default: '
+                       '1000, 150 with --quick)')
+    bench.add_argument('--e2e-pairs', type=_positive_int, default=None,
+                       help='pairs sent to the node process (default: 100, 15 with --quick)')
+    bench.add_argument('--seed', type=int, default=None,
+                       help='seed of the random pairs (default: 2023)')
+    bench.add_argument('--domain-id', type=_domain_id, default=None,
+                       help='ROS domain of the node process (default: ROS_DOMAIN_ID if set, '
+                       'else 78); DDS stays on this host')
     bench.set_defaults(run=_run_bench)
     demo = commands.add_parser(
         'demo', help='start the node, send pick/place pairs, judge the executed motion')
-    from ellipath_ros.demo import add_arguments
     add_arguments(demo)
     demo.set_defaults(run=_run_demo)
     return parser
@@ -209,7 +246,19 @@ def build_parser():
 
 def main(argv=None):
     """Run the ``ellipath`` command; return the exit status."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except _ArgumentsRejected as error:
+        message = f'{error.parser.prog}: {error}'
+        if '--json' in argv:
+            sys.stdout.write(json.dumps({'error': {'kind': 'invalid_arguments',
+                                                   'message': message}}) + '\n')
+        else:
+            # argparse's own report: usage, then the reason.
+            error.parser.print_usage(sys.stderr)
+            sys.stderr.write(f'{error.parser.prog}: error: {error}\n')
+        return 2
     try:
         return args.run(args)
     except KeyboardInterrupt:

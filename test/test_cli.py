@@ -84,3 +84,26 @@ def test_edge_cases_plan_without_nan(capsys, place):
     assert status == 0
     values = [value for value in result.values() if isinstance(value, float)]
     assert all(math.isfinite(value) for value in values)
+
+
+@pytest.mark.parametrize('argv, text', [
+    (['plan', '--pick', '0', '0', '--json'], '--pick'),
+    (['plan', '--pick', '0', '0', '-0.8', '--json'], '--place'),
+    (EXAMPLE + ['--max-speed', 'fast'], '--max-speed'),
+    (EXAMPLE + ['--profile'], '--profile'),
+    (EXAMPLE + ['--no-such-option'], '--no-such-option'),
+])
+def test_with_json_argument_errors_are_an_error_object_on_stdout(capsys, argv, text):
+    status = main(argv)
+    captured = capsys.readouterr()
+    assert status == 2 and captured.err == ''
+    error = json.loads(captured.out)['error']
+    assert error['kind'] == 'invalid_arguments'
+    assert error['message'].startswith('ellipath') and text in error['message']
+
+
+def test_without_json_argument_errors_keep_argparses_usage_on_stderr(capsys):
+    status = main(['plan', '--pick', '0', '0', '-0.8'])
+    captured = capsys.readouterr()
+    assert status == 2 and captured.out == ''
+    assert captured.err.startswith('usage: ellipath plan') and '--place' in captured.err

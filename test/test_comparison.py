@@ -15,11 +15,11 @@
 
 import math
 
-from ellipath_ros.core.comparison import (
-    figure8_paths, half_ellipse_length, lame_path, lame_quarter_length, lame_quarter_points,
-    symmetric_ellipse_path)
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy
+from ellipath_ros.paper.comparison import (
+    figure8_paths, half_ellipse_length, lame_path, lame_quarter_length, lame_quarter_points,
+    symmetric_ellipse_path)
 import numpy as np
 import pytest
 

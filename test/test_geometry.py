@@ -17,8 +17,8 @@ import math
 
 from ellipath_ros.core.errors import DegenerateGeometryError, InvalidInputError
 from ellipath_ros.core.geometry import (
-    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_apex, paper_axes,
-    paper_phi, plan_path)
+    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi, plan_path)
+from ellipath_ros.paper.equations import paper_apex, paper_axes
 import numpy as np
 import pytest
 
@@ -110,6 +110,54 @@ def test_critical_angle_on_or_just_below_a_whole_degree_takes_the_next_one(criti
         assert math.degrees(phi) == pytest.approx(critical_deg + 1.0)
         arc = arc_for_policy(PAPER_L, h, ArcPolicy('paper'))
         assert arc.b > 0.01 * arc.a
+
+
+# The documented threshold (docs/paper_reproduction.md, erratum 3): the paper's ellipse is
+# kept unless it rises less than a tenth of the half-width above the chord's midpoint.
+DOCUMENTED_MIN_BULGE = 0.1
+
+
+def test_small_critical_angle_keeps_the_papers_fat_ellipse():
+    # Clearances 25 mm: T1 = (-0.1525, 0, -0.875), T2 = (0.1525, 0, -0.870), so
+    # atan(h/l) = 0.94 deg and the paper's rule gives phi* = 1 deg (not 2 deg).
+    path = plan_path((-0.1525, 0.0, -0.9), (0.1525, 0.0, -0.895))
+    arc = path.arc
+    assert math.degrees(math.atan2(arc.h, arc.l)) == pytest.approx(0.9392, abs=1e-4)
+    assert math.degrees(arc.phi) == pytest.approx(1.0, abs=1e-12)
+    a, b = paper_axes(arc.l, arc.h, math.radians(1.0))
+    assert (arc.a, arc.b) == pytest.approx((a, b), rel=1e-12)
+    assert round(arc.b * 1e3, 1) == 37.6
+    assert round(arc.min_radius * 1e3, 1) == 9.3
+    # Apex 40 mm above the lower tangent point, against 114 mm at phi = 2 deg.
+    assert round(arc.apex_height * 1e3) == 40
+    assert path.apex[2] - path.tangent_1[2] == pytest.approx(arc.apex_height, rel=1e-12)
+
+
+@pytest.mark.parametrize('whole_deg', [1, 2, 5, 10, 30, 45, 60, 80, 88])
+def test_paper_rule_is_the_ceiling_wherever_its_ellipse_is_sound(whole_deg):
+    # Independent of the conjugate form: a, b from the paper's eqs. (15)-(20), and
+    # k = a b / l (the ellipse's area is pi a b = pi l k).
+    for margin_deg in (0.9, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.003, 1e-3, 1e-4):
+        critical = math.radians(whole_deg - margin_deg)
+        h = PAPER_L * math.tan(critical)
+        a, b = paper_axes(PAPER_L, h, math.radians(whole_deg))
+        sound = a * b / PAPER_L >= DOCUMENTED_MIN_BULGE * PAPER_L
+        expected = whole_deg if sound else whole_deg + 1
+        assert math.degrees(paper_phi(PAPER_L, h)) == pytest.approx(expected, abs=1e-9), \
+            (whole_deg, margin_deg)
+    # At small angles the paper's result is kept well inside the old fixed 0.1 deg margin.
+    if whole_deg <= 2:
+        assert math.degrees(paper_phi(PAPER_L, PAPER_L * math.tan(
+            math.radians(whole_deg - 0.05)))) == pytest.approx(whole_deg)
+
+
+def test_needle_at_the_paper_angle_is_regularised_to_a_sound_arc():
+    h = PAPER_L * math.tan(math.radians(1.0 - 1e-3))
+    a, b = paper_axes(PAPER_L, h, math.radians(1.0))
+    assert b / a < 0.05
+    arc = arc_for_policy(PAPER_L, h, ArcPolicy('paper'))
+    assert math.degrees(arc.phi) == pytest.approx(2.0)
+    assert arc.k >= DOCUMENTED_MIN_BULGE * PAPER_L and arc.b / arc.a > 0.5
 
 
 def test_well_posed_critical_angle_keeps_the_paper_ceiling():

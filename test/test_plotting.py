@@ -20,11 +20,11 @@ import time
 
 from ellipath_ros.core.errors import DegenerateGeometryError
 from ellipath_ros.core.planner import PlannerConfig
-from ellipath_ros.plotting import radius_of_curvature_derivatives, write_figures
+from ellipath_ros.paper.plotting import radius_of_curvature_derivatives, write_figures
 import numpy as np
 import pytest
 
-# matplotlib is the optional plot extra (ellipath_ros.plotting imports it lazily).
+# matplotlib is the optional plot extra (ellipath_ros.paper.plotting imports it lazily).
 pytest.importorskip('matplotlib')
 
 # The paper's example: l = 0.15 m, h = 0.025 m with 25 mm clearances.

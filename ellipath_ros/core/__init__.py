@@ -12,4 +12,56 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""ROS-free planning core: geometry, timing, kinematics, one orchestration function, sequencing."""
+"""
+ROS-free planning core: geometry, timing, kinematics and one orchestration function.
+
+NumPy and Ruckig only. The public API is ``__all__`` below; everything else in
+the submodules (and every name with a leading underscore) may change. Most
+users need two calls::
+
+    from ellipath_ros.core import plan_cycle, PlannerConfig
+    cycle = plan_cycle(start, pick, place, PlannerConfig())
+"""
+
+from .errors import (
+    DegenerateGeometryError, EllipathError, InvalidInputError, LimitError, UnreachableError)
+from .geometry import ARC_POLICIES, ArcPolicy, EllipticArc, PickPlacePath, plan_path
+from .joint_trajectory import JointTrajectoryData, TrajectoryRejectedError, validate_jtc
+from .kinematics import DeltaGeometry, forward_kinematics, inverse_kinematics, JointLimits
+from .planner import CyclePlan, LegPlan, plan_cycle, plan_transfer, PlannerConfig
+from .timing import CartesianLimits, PROFILES, time_motion, TimedMotion
+
+__all__ = [
+    # Planning a request: the entry points and their configuration and results.
+    'plan_cycle',
+    'plan_transfer',
+    'PlannerConfig',
+    'CyclePlan',
+    'LegPlan',
+    # The path (Choe et al.'s ellipse between two vertical segments).
+    'plan_path',
+    'ARC_POLICIES',
+    'ArcPolicy',
+    'EllipticArc',
+    'PickPlacePath',
+    # Timing along the path.
+    'time_motion',
+    'PROFILES',
+    'CartesianLimits',
+    'TimedMotion',
+    # The Delta robot.
+    'DeltaGeometry',
+    'JointLimits',
+    'inverse_kinematics',
+    'forward_kinematics',
+    # The joint trajectory for ros2_control's joint_trajectory_controller.
+    'JointTrajectoryData',
+    'validate_jtc',
+    # Errors: every one has a machine-readable ``kind``.
+    'EllipathError',
+    'InvalidInputError',
+    'DegenerateGeometryError',
+    'UnreachableError',
+    'LimitError',
+    'TrajectoryRejectedError',
+]

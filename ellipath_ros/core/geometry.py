@@ -15,9 +15,10 @@
 """
 The paper's path: an asymmetric bisected ellipse between two vertical segments.
 
-Paper frame (DESIGN §2): the vertical plane through pick and place, coordinates
-(x, y) = (horizontal along ``u``, vertical), origin at the midpoint of the
-tangent points, T1 = (-l, -h), T2 = (l, h), l > 0.
+Paper frame (also used by docs/paper_reproduction.md): the vertical plane
+through pick and place, coordinates (x, y) = (horizontal along ``u``,
+vertical), origin at the midpoint of the tangent points, T1 = (-l, -h),
+T2 = (l, h), l > 0.
 
 Every ellipse through T1 and T2 with vertical tangents there has its centre at
 the origin, so the family has one parameter. We use the conjugate
@@ -43,18 +44,24 @@ from .errors import DegenerateGeometryError, InvalidInputError, require_point, r
 
 ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 
-# A critical angle closer than this below a whole degree makes the paper's
-# ellipse needle-thin (b -> 0); the paper's rule then takes the next degree.
-PAPER_MIN_MARGIN_DEG = 0.1
+# As phi* nears the critical angle the paper's ellipse collapses onto the chord T1-T2
+# (k -> 0): the arc rises only k above the chord's midpoint, its radius at T1 and T2 is
+# k**2 / l and its smallest radius b**2 / a <= k**2 / l. Below this bulge k / l (radius at
+# the tangent points under l / 100) the paper's rule takes the next whole degree. Near the
+# paper's 10 deg example this is the margin of about 0.1 deg used before; unlike a fixed
+# margin it scales with the angle, so every sound paper ellipse is kept (e.g. phi* = 1 deg
+# at a 0.94 deg critical angle: k / l = 0.25). See docs/paper_reproduction.md, erratum 3.
+_PAPER_MIN_BULGE = 0.1
 # Horizontal distances below this are a straight move from pick to place (no arc): any
 # ellipse over so short a width is a needle whose corners no robot can follow.
-MIN_HORIZONTAL_DISTANCE = 1e-3
-# An arc whose smallest radius of curvature is below this is rejected (needle-thin ellipse).
-MIN_ARC_RADIUS = 5e-5
+_MIN_HORIZONTAL_DISTANCE = 1e-3
+# An arc whose smallest radius of curvature is below this is rejected: a needle-thin ellipse,
+# whose ends allow at most sqrt(50 m/s**2 * 0.05 mm) = 5 cm/s at the default acceleration limit.
+_MIN_ARC_RADIUS = 5e-5
 # Coordinates beyond this are no robot's workspace (and would overflow the arithmetic).
-MAX_COORDINATE = 10.0
+_MAX_COORDINATE = 10.0
 # Pick and place closer than this are the same point: nothing to plan.
-MIN_MOVE_DISTANCE = 1e-6
+_MIN_MOVE_DISTANCE = 1e-6
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _N_PANELS = 256
@@ -101,11 +108,11 @@ def paper_phi(half_width, h):
     """
     Return the paper's optimal angle phi* [rad] (eq. 18), regularised.
 
-    phi* = ceil(critical angle in degrees), mirrored for h < 0. Where the
-    critical angle is a whole degree or less than ``PAPER_MIN_MARGIN_DEG``
-    below one, the paper's rule gives a degenerate or needle-thin ellipse, so
-    the next whole degree is taken. h = 0 returns 0 (the paper's 0/0, whose
-    limit from either side is the semicircle).
+    phi* = ceil(critical angle in degrees), mirrored for h < 0. Where that
+    ellipse is collapsed onto the chord T1-T2 (a critical angle on or just
+    below a whole degree: k / l below ``_PAPER_MIN_BULGE``), the next whole
+    degree is taken. h = 0 returns 0 (the paper's 0/0, whose limit from
+    either side is the semicircle).
 
     Raises
     ------
@@ -113,34 +120,21 @@ def paper_phi(half_width, h):
         If the rule leaves no ellipse (phi* would reach 90 degrees).
 
     """
-    critical_deg = math.degrees(math.atan2(abs(h), half_width))
     if h == 0.0:
         return 0.0
+    critical_deg = math.degrees(math.atan2(abs(h), half_width))
     phi_deg = math.ceil(critical_deg)
-    if phi_deg - critical_deg < PAPER_MIN_MARGIN_DEG:
+    min_k_squared = (_PAPER_MIN_BULGE * half_width) ** 2
+    if phi_deg < 90 and (
+            _conjugate_k_squared(half_width, h, math.radians(phi_deg)) < min_k_squared):
         phi_deg += 1
     if phi_deg >= 90:
         raise DegenerateGeometryError(
-            f'paper arc rule: expected a critical angle atan(|h|/l) below '
-            f'{90 - 1 - PAPER_MIN_MARGIN_DEG:g} deg, got {critical_deg:.4f} deg '
-            f'(l = {half_width:.6g} m, h = {h:.6g} m); use the apex_clearance or min_radius '
-            f'arc policy for steep moves')
+            f'paper arc rule: expected a whole degree below 90 deg whose ellipse is not '
+            f'collapsed onto the chord (k/l >= {_PAPER_MIN_BULGE:g}), got a critical angle '
+            f'atan(|h|/l) of {critical_deg:.4f} deg (l = {half_width:.6g} m, h = {h:.6g} m); '
+            f'use the apex_clearance or min_radius arc policy for steep moves')
     return math.copysign(math.radians(phi_deg), h)
-
-
-def paper_axes(half_width, h, phi):
-    """
-    Return (a, b) of the ellipse of angle ``phi`` by the paper's eqs. (15)-(20).
-
-    Valid for phi strictly beyond the critical angle (D, E != 0); used to
-    reproduce the paper and for its Figure 2.
-    """
-    s, c = math.sin(phi), math.cos(phi)
-    d = half_width * math.sin(2 * phi) + 2 * h * s * s
-    e = half_width * math.sin(2 * phi) - 2 * h * c * c
-    f = half_width * half_width * s * s - h * h * c * c
-    g = half_width * half_width * c * c - h * h * s * s
-    return math.sqrt(d * f / e + g), math.sqrt(f + e * g / d)
 
 
 def conjugate_k_from_phi(half_width, h, phi):
@@ -152,14 +146,19 @@ def conjugate_k_from_phi(half_width, h, phi):
     """
     if h == 0.0:
         return half_width
-    k_squared = (half_width * half_width - h * h
-                 - 2.0 * half_width * abs(h) / math.tan(2.0 * abs(phi)))
+    k_squared = _conjugate_k_squared(half_width, h, phi)
     if not k_squared > 0.0:
         raise DegenerateGeometryError(
             f'phi: expected an angle beyond the critical angle '
             f'{math.degrees(math.atan2(abs(h), half_width)):.4f} deg, '
             f'got {math.degrees(phi):.4f} deg')
     return math.sqrt(k_squared)
+
+
+def _conjugate_k_squared(half_width, h, phi):
+    """Return k**2 from tan(2 phi) = 2 l h / (l**2 - h**2 - k**2); <= 0 if phi is too flat."""
+    return (half_width * half_width - h * h
+            - 2.0 * half_width * abs(h) / math.tan(2.0 * abs(phi)))
 
 
 def elliptic_e(m):
@@ -341,24 +340,6 @@ def require_finite_h(h):
     return require_range('h', h)
 
 
-def paper_apex(a, b, phi):
-    """
-    Return the apex (x*, y*) by the paper's eqs. (21)-(25), as a (2,) array.
-
-    Eq. (24) gives tan(theta*); of its two solutions we take the upper one.
-    """
-    big_a = math.cos(phi) ** 2 / a ** 2 + math.sin(phi) ** 2 / b ** 2
-    big_b = math.sin(2 * phi) / a ** 2 - math.sin(2 * phi) / b ** 2
-    theta = math.atan((2 * big_a * a * math.cos(phi) + big_b * a * math.sin(phi))
-                      / (2 * big_a * b * math.sin(phi) - big_b * b * math.cos(phi)))
-    candidates = []
-    for candidate in (theta, theta + math.pi):
-        candidates.append((
-            a * math.cos(phi) * math.cos(candidate) - b * math.sin(phi) * math.sin(candidate),
-            a * math.sin(phi) * math.cos(candidate) + b * math.cos(phi) * math.sin(candidate)))
-    return np.array(max(candidates, key=lambda point: point[1]))
-
-
 def arc_for_policy(half_width, h, policy):
     """Return the EllipticArc that ``policy`` chooses for half-width l and half-rise h."""
     if policy.kind == 'paper':
@@ -438,7 +419,7 @@ class PickPlacePath:
     The composite path: lift P1 -> T1, arc T1 -> T2, descent T2 -> P2 (base frame, m).
 
     Build it with :func:`plan_path`. A straight move (pick and place less than
-    ``MIN_HORIZONTAL_DISTANCE`` apart horizontally) has no arc: one straight
+    1 mm apart horizontally) has no arc: one straight
     segment from P1 to P2, stored as the lift when it rises (or stays level)
     and as the descent when it goes down.
 
@@ -462,7 +443,7 @@ class PickPlacePath:
     place: np.ndarray
     tangent_1: np.ndarray
     tangent_2: np.ndarray
-    arc: object
+    arc: EllipticArc | None
     direction: np.ndarray
     segment_lengths: np.ndarray
 
@@ -552,11 +533,11 @@ class PickPlacePath:
 
 
 def require_coordinates(name, point):
-    """Return ``point`` as a (3,) array of finite coordinates within +-MAX_COORDINATE m."""
+    """Return ``point`` as a (3,) array of finite coordinates within +-10 m."""
     point = require_point(name, point)
-    if np.abs(point).max() > MAX_COORDINATE:
+    if np.abs(point).max() > _MAX_COORDINATE:
         raise InvalidInputError(
-            f'{name}: expected coordinates within +-{MAX_COORDINATE:g} m, got {point.tolist()}')
+            f'{name}: expected coordinates within +-{_MAX_COORDINATE:g} m, got {point.tolist()}')
     return point
 
 
@@ -593,11 +574,11 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     policy = policy or ArcPolicy()
     offset = place - pick
     horizontal = math.hypot(offset[0], offset[1])
-    if np.linalg.norm(offset) < MIN_MOVE_DISTANCE:
+    if np.linalg.norm(offset) < _MIN_MOVE_DISTANCE:
         raise DegenerateGeometryError(
-            f'pick and place: expected points at least {MIN_MOVE_DISTANCE:g} m apart, '
+            f'pick and place: expected points at least {_MIN_MOVE_DISTANCE:g} m apart, '
             f'got {np.linalg.norm(offset):.3g} m (pick {pick.tolist()}, place {place.tolist()})')
-    if horizontal < MIN_HORIZONTAL_DISTANCE:
+    if horizontal < _MIN_HORIZONTAL_DISTANCE:
         # One straight line: the object stays in the same column, no clearance to clear.
         distance = float(np.linalg.norm(offset))
         rises = offset[2] >= 0.0
@@ -609,10 +590,10 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     tangent_2 = place + c2 * up
     direction = np.array([offset[0], offset[1], 0.0]) / horizontal
     arc = arc_for_policy(0.5 * horizontal, 0.5 * float(tangent_2[2] - tangent_1[2]), policy)
-    if arc.min_radius < MIN_ARC_RADIUS:
+    if arc.min_radius < _MIN_ARC_RADIUS:
         raise DegenerateGeometryError(
             f'arc ({policy.kind}): expected a smallest radius of curvature of at least '
-            f'{MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
+            f'{_MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
             f'ellipse for l = {arc.l:.4g} m, h = {arc.h:.4g} m); use the min_radius arc policy '
             f'with a larger min_radius, or move pick and place further apart horizontally')
     lengths = np.array([c1, arc.length, c2])

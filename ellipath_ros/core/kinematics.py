@@ -15,7 +15,7 @@
 """
 Closed-form kinematics of the rotary (Clavel) Delta robot, vectorised over points.
 
-Conventions (DESIGN.md section 2): SI units, base frame with z up, the robot works below its
+Conventions, shared by the whole package: SI units, base frame with z up, the robot works below its
 base so the tool centre point (TCP, the effector centre) has z < 0. Arm ``i`` (i = 0, 1, 2)
 sits at azimuth ``120 deg * i`` from +x towards +y; its actuator axis is horizontal, tangent to
 the base circle of radius ``R`` at ``A_i = R e_i`` with ``e_i`` the radial unit vector. The
@@ -42,7 +42,7 @@ import numpy as np
 
 # |s_i . b_i| / (L1 L2) (IK) and |det A| / L2^3 (FK) below this count as singular: the rates
 # would be amplified by more than a million.
-SINGULARITY_TOLERANCE = 1e-6
+_SINGULARITY_TOLERANCE = 1e-6
 
 _AZIMUTHS = 2.0 * np.pi * np.arange(3) / 3.0
 # Row i: radial unit vector e_i, tangential unit vector t_i of arm i.
@@ -416,7 +416,7 @@ def _ik_diagonal(forearm, d_elbow, geometry, name):
     """Return ``s_i . b_i`` (N, 3), raising at the first IK singularity."""
     diagonal = np.einsum('nij,nij->ni', forearm, d_elbow)
     scale = geometry.upper_arm * geometry.forearm
-    singular = (np.abs(diagonal) < SINGULARITY_TOLERANCE * scale).any(axis=1)
+    singular = (np.abs(diagonal) < _SINGULARITY_TOLERANCE * scale).any(axis=1)
     if singular.any():
         index = int(np.argmax(singular))
         arm = int(np.argmin(np.abs(diagonal[index])))
@@ -468,7 +468,7 @@ def joint_velocities(points, q, velocities, geometry, *, name='points'):
     Raises
     ------
     UnreachableError
-        A pose is at (or within SINGULARITY_TOLERANCE of) an IK singularity.
+        A pose is at (or within a relative 1e-6 of) an IK singularity.
 
     """
     points, q, (velocities,), single = _check_inputs(
@@ -514,7 +514,7 @@ def joint_accelerations(points, q, velocities, accelerations, qdot, geometry, *,
     Raises
     ------
     UnreachableError
-        A pose is at (or within SINGULARITY_TOLERANCE of) an IK singularity.
+        A pose is at (or within a relative 1e-6 of) an IK singularity.
 
     """
     points, q, (velocities, accelerations, qdot), single = _check_inputs(
@@ -554,7 +554,7 @@ def cartesian_velocities(q, qdot, geometry, *, name='q'):
     ------
     UnreachableError
         The pose cannot be assembled, or is at a direct-kinematics singularity
-        (``|det A| / L2^3`` below SINGULARITY_TOLERANCE: the forearms are coplanar).
+        (``|det A| / L2^3`` below 1e-6: the forearms are coplanar).
 
     """
     q_array, single = _as_rows(name, q)
@@ -563,7 +563,7 @@ def cartesian_velocities(q, qdot, geometry, *, name='q'):
     points = _forward(q_array, geometry, name)
     forearm, d_elbow, _ = _arm_vectors(points, q_array, geometry)
     determinant = np.linalg.det(forearm)
-    singular = np.abs(determinant) < SINGULARITY_TOLERANCE * geometry.forearm ** 3
+    singular = np.abs(determinant) < _SINGULARITY_TOLERANCE * geometry.forearm ** 3
     if singular.any():
         index = int(np.argmax(singular))
         raise _unreachable(

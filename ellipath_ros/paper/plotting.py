@@ -19,7 +19,7 @@ Optional: needs matplotlib (``pip install .[plot]``), imported lazily inside
 the functions and drawn with the Agg canvas only (no pyplot, no global backend
 change). Neither the planning core nor the node imports this module.
 
-Coordinates of the path figures are the paper frame (DESIGN §2): horizontal
+Coordinates of the path figures are the paper frame (``core/geometry.py``): horizontal
 along u from pick towards place, vertical z, origin at the midpoint of T1 and
 T2. Angles are shown in degrees (axis labels say so); everything else is SI.
 """
@@ -28,23 +28,26 @@ from dataclasses import replace
 import math
 import os
 
-from ellipath_ros.core.comparison import figure8_paths
 from ellipath_ros.core.errors import DegenerateGeometryError
 from ellipath_ros.core.geometry import (
-    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_axes, paper_phi)
+    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi)
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import curvature_nodes
+from ellipath_ros.paper.comparison import figure8_paths
+from ellipath_ros.paper.equations import paper_axes
 import numpy as np
 
-# Resolution of the written PNGs [dots per inch].
-DPI = 90
+# Resolution of the written PNGs [dots per inch]: readable, and small enough (about 30-100 kB)
+# to keep the figures of docs/figures in the repository.
+_DPI = 90
 # Figure 3 of the paper: radius of curvature of the ellipse a = 0.3 m, b = 0.05 m.
-PAPER_FIG3_AXES = (0.3, 0.05)
+_PAPER_FIG3_AXES = (0.3, 0.05)
 # Figure 2 of the paper: phi from the critical angle up to this [deg], in 1 deg steps.
-PAPER_FIG2_LAST_DEG = 60
-# Time samples of the curves over one motion.
-TIME_SAMPLES = 1500
+_PAPER_FIG2_LAST_DEG = 60
+# Time samples of the curves over one motion: on motions up to 2.5 s still six per 10 ms
+# jerk phase (50 m/s**2 reached at 5000 m/s**3), so the acceleration ramps are drawn, not cut.
+_TIME_SAMPLES = 1500
 
 _PLOT_EXTRA_HINT = 'install the plot extra: pip install .[plot]'
 _JOINT_STYLES = (('tab:red', '-'), ('tab:green', '-.'), ('tab:blue', '--'))
@@ -71,7 +74,7 @@ def _new_figure(rows=1, columns=1, size=(7.0, 4.5), **subplot_kw):
 def _save(figure, out_dir, name):
     """Write ``figure`` as ``out_dir/name`` and return the path."""
     path = os.path.join(out_dir, name)
-    figure.savefig(path, dpi=DPI)
+    figure.savefig(path, dpi=_DPI)
     return path
 
 
@@ -119,7 +122,7 @@ def _figure2(arc, policy, out_dir):
                   if h == 0.0 else 'no whole degree between the critical angle and 90 deg')
         left.text(0.5, 0.5, reason, ha='center', va='center', transform=left.transAxes)
     else:
-        phis_deg = np.arange(first_deg, max(PAPER_FIG2_LAST_DEG, first_deg) + 1)
+        phis_deg = np.arange(first_deg, max(_PAPER_FIG2_LAST_DEG, first_deg) + 1)
         phis = np.radians(phis_deg)
         exact = [EllipticArc(half_width, abs(h), conjugate_k_from_phi(
             half_width, abs(h), phi)).length for phi in phis]
@@ -159,7 +162,7 @@ def _figure2(arc, policy, out_dir):
 def _figure3(arc, out_dir):
     """Draw rho and its derivatives for the paper's ellipse and for this arc (Figure 3)."""
     figure, axes = _new_figure(3, 2, size=(10.0, 7.0), sharex='col')
-    paper_a, paper_b = PAPER_FIG3_AXES
+    paper_a, paper_b = _PAPER_FIG3_AXES
     cases = ((paper_a, paper_b, np.linspace(0.0, 2.0 * math.pi, 721),
               f'paper: a = {paper_a:g} m, b = {paper_b:g} m'),
              (arc.a, arc.b, np.linspace(arc.theta_T2, arc.theta_T1, 361),
@@ -179,7 +182,7 @@ def _figure3(arc, out_dir):
 
 def _path_state_at(motion, s_query):
     """Return the times [s] at which the motion reaches path lengths ``s_query`` [m]."""
-    t = np.linspace(0.0, motion.duration, 4 * TIME_SAMPLES)
+    t = np.linspace(0.0, motion.duration, 4 * _TIME_SAMPLES)
     s = np.maximum.accumulate(motion.path_state(t)[0])
     return np.interp(s_query, s, t)
 
@@ -244,7 +247,7 @@ def _segment_times(plan):
 def _figure7(plan, config, out_dir):
     """Draw the joint angles of the three actuators over time (IK of the motion)."""
     motion = plan.motion
-    t = np.linspace(0.0, motion.duration, TIME_SAMPLES)
+    t = np.linspace(0.0, motion.duration, _TIME_SAMPLES)
     q = inverse_kinematics(motion.evaluate(t)[0], config.geometry, name='motion point')
     knots = plan.joint_trajectory
     figure, axes = _new_figure(size=(8.0, 4.5))
@@ -289,7 +292,7 @@ def _figure_profiles(plans, config, out_dir):
     labels = ('speed |v| [m/s]', 'acceleration |a| [m/s^2]', 'jerk |j| [m/s^3]')
     for plan, color in zip(plans, ('tab:blue', 'tab:orange')):
         motion = plan.motion
-        t = np.linspace(0.0, motion.duration, TIME_SAMPLES)
+        t = np.linspace(0.0, motion.duration, _TIME_SAMPLES)
         norms = [np.linalg.norm(value, axis=1) for value in motion.evaluate(t)[1:]]
         for row, value in enumerate(norms):
             axes[row, 0].plot(t, value, color=color,

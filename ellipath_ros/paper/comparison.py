@@ -36,7 +36,7 @@ neither where these curves sit nor the exponent m. Our assumptions:
   reason Lamé curves are used there); an even m keeps the length integrand
   analytic. m = 2 would make the corners quarter ellipses.
 * The paper's d = 0.05 and 0.15 are l/3 and l on its example; for other l we
-  keep these fractions (``PAPER_LAME_D_FRACTIONS``). e stays 0.025 m.
+  keep these fractions (``_PAPER_LAME_D_FRACTIONS``). e stays 0.025 m.
 * The symmetric bisected ellipse is axis-aligned, centred at (0, |h|), with
   horizontal semi-axis l (forced by the vertical tangents at u = +-l) and
   vertical semi-axis ``rise`` = 0.025 m, the Lamé curves' e: all three
@@ -63,13 +63,14 @@ from ellipath_ros.core.geometry import arc_for_policy, ArcPolicy, elliptic_e, re
 import numpy as np
 
 # The paper's Lamé curves: d = 0.05 and 0.15 m for l = 0.15 m, i.e. l / 3 and l.
-PAPER_LAME_D_FRACTIONS = (1.0 / 3.0, 1.0)
+_PAPER_LAME_D_FRACTIONS = (1.0 / 3.0, 1.0)
 # The paper's Lamé height e [m]; also the rise of the symmetric ellipse.
-PAPER_LAME_E = 0.025
+_PAPER_LAME_E = 0.025
 # Assumed Lamé exponent (the paper does not state it).
-DEFAULT_EXPONENT = 4.0
-# Default samples per curved piece of a comparison path.
-DEFAULT_SAMPLES = 201
+_DEFAULT_EXPONENT = 4.0
+# Default samples per curved piece of a comparison path: a smooth line in Figure 8 (lengths
+# come from quadrature, not from these samples).
+_DEFAULT_SAMPLES = 201
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _LAME_PANELS = 256
@@ -142,7 +143,7 @@ def _unit_lame(psi, m):
     return rho, rho_dot
 
 
-def lame_quarter_points(d, e, m=DEFAULT_EXPONENT, samples=DEFAULT_SAMPLES):
+def lame_quarter_points(d, e, m=_DEFAULT_EXPONENT, samples=_DEFAULT_SAMPLES):
     """
     Sample the quarter Lamé curve |u/d|**m + |v/e|**m = 1, u, v >= 0.
 
@@ -173,7 +174,7 @@ def lame_quarter_points(d, e, m=DEFAULT_EXPONENT, samples=DEFAULT_SAMPLES):
     return points
 
 
-def lame_quarter_length(d, e, m=DEFAULT_EXPONENT):
+def lame_quarter_length(d, e, m=_DEFAULT_EXPONENT):
     """
     Return the length of the quarter Lamé curve |u/d|**m + |v/e|**m = 1 [m].
 
@@ -235,7 +236,7 @@ def _join(half_width, h, top):
     return points[keep]
 
 
-def symmetric_ellipse_path(half_width, h, rise=PAPER_LAME_E, samples=DEFAULT_SAMPLES):
+def symmetric_ellipse_path(half_width, h, rise=_PAPER_LAME_E, samples=_DEFAULT_SAMPLES):
     """
     Return the symmetric bisected ellipse path (Figure 8, green).
 
@@ -270,7 +271,8 @@ def symmetric_ellipse_path(half_width, h, rise=PAPER_LAME_E, samples=DEFAULT_SAM
         2.0 * abs(h) + rise)
 
 
-def lame_path(half_width, h, d, e=PAPER_LAME_E, m=DEFAULT_EXPONENT, samples=DEFAULT_SAMPLES):
+def lame_path(half_width, h, d, e=_PAPER_LAME_E, m=_DEFAULT_EXPONENT,
+              samples=_DEFAULT_SAMPLES):
     """
     Return a Lamé-corner path (Figure 8, blue and black).
 
@@ -312,7 +314,7 @@ def lame_path(half_width, h, d, e=PAPER_LAME_E, m=DEFAULT_EXPONENT, samples=DEFA
         2.0 * lame_quarter_length(d, e, m) + straight + 2.0 * abs(h), 2.0 * abs(h) + e)
 
 
-def proposed_path(arc, samples=DEFAULT_SAMPLES, label='proposed asymmetric ellipse'):
+def proposed_path(arc, samples=_DEFAULT_SAMPLES, label='proposed asymmetric ellipse'):
     """
     Return the proposed arc as a ComparisonPath (Figure 8, red).
 
@@ -335,8 +337,8 @@ def proposed_path(arc, samples=DEFAULT_SAMPLES, label='proposed asymmetric ellip
     return ComparisonPath('proposed', label, arc.point(t), arc.length, arc.apex_height)
 
 
-def figure8_paths(half_width, h, policy=None, e=PAPER_LAME_E, m=DEFAULT_EXPONENT,
-                  samples=DEFAULT_SAMPLES):
+def figure8_paths(half_width, h, policy=None, e=_PAPER_LAME_E, m=_DEFAULT_EXPONENT,
+                  samples=_DEFAULT_SAMPLES):
     """
     Return the four paths of the paper's Figure 8 for half-width l and half-rise h.
 
@@ -366,4 +368,4 @@ def figure8_paths(half_width, h, policy=None, e=PAPER_LAME_E, m=DEFAULT_EXPONENT
     label = 'proposed (paper rule)' if policy.kind == 'paper' else f'proposed ({policy.kind})'
     return (proposed_path(arc, samples, label), symmetric_ellipse_path(half_width, h, e, samples),
             *(lame_path(half_width, h, fraction * half_width, e, m, samples)
-              for fraction in PAPER_LAME_D_FRACTIONS))
+              for fraction in _PAPER_LAME_D_FRACTIONS))
