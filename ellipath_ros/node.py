@@ -43,6 +43,8 @@ is refused with its reason while the previous configuration stays in force.
 """
 
 from collections import OrderedDict
+import os
+import signal
 import sys
 import threading
 import time
@@ -78,6 +80,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
@@ -89,7 +92,13 @@ NODE_NAME = 'ellipath_node'
 # requests wait behind a plan, and a plan waits for nothing but the GIL.
 EXECUTOR_THREADS = 3
 # How long shutdown waits for a plan in progress before destroying the node [s].
-SHUTDOWN_WAIT = 2.0
+SHUTDOWN_WAIT = 5.0
+# Longest wait of the executor in main() [s]: a stop request is seen at least this often.
+SPIN_PERIOD = 0.1
+# At shutdown, how long each publisher may take to have its last messages acknowledged [s].
+FLUSH_WAIT = 0.5
+# After a signal, the process ends this soon even if the orderly shutdown is stuck [s].
+STOP_DEADLINE = SHUTDOWN_WAIT + 3.0
 
 
 class UnpairedPlaceError(EllipathError):
@@ -360,9 +369,43 @@ class EllipathNode(Node):
             self.get_fully_qualified_name(), level, message, values))
 
 
+def _watch_signals(stop, finished):
+    """
+    Make SIGINT and SIGTERM set ``stop``; exit if ``finished`` is not set STOP_DEADLINE later.
+
+    rclpy's own handlers are not used (see main()): they shut the context down at once, from
+    a thread of their own, while a plan may still be publishing, and they rely on waking the
+    executor's wait, a wake-up that is sometimes lost. Python runs a signal handler only in
+    the main thread, between two bytecodes; the main thread spends its time in rcl_wait. So
+    a thread of its own learns of the signal from the wake-up file descriptor, which the
+    C-level handler writes in whichever thread takes the signal, sets ``stop`` and, should
+    the orderly shutdown of main() not finish in time, ends the process.
+    """
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda signum, frame: stop.set())
+
+    def watch():
+        os.read(read_fd, 1)
+        stop.set()
+        if not finished.wait(STOP_DEADLINE):
+            get_logger(NODE_NAME).error(
+                f'shutdown not finished {STOP_DEADLINE:g} s after the signal: exiting now')
+            os._exit(0)
+
+    threading.Thread(target=watch, name='signal_watch', daemon=True).start()
+
+
 def main(args=None):
     """
     Run ``ellipath_node`` until SIGINT or SIGTERM; return the process exit code.
+
+    A signal stops the node within ``SPIN_PERIOD``: the plan in progress (if any) is finished
+    and published (up to ``SHUTDOWN_WAIT``), then the node and the context are shut down, and
+    the exit code is 0. If that is not done ``STOP_DEADLINE`` after the signal, an error is
+    logged and the process exits with status 0 anyway.
 
     Parameters
     ----------
@@ -370,7 +413,20 @@ def main(args=None):
         Command-line arguments (``--ros-args ...``); ``sys.argv`` if None.
 
     """
-    rclpy.init(args=args)
+    # Why not rclpy's signal handlers and executor.spin(): the node sometimes ignored the first
+    # SIGINT (docs/reliability.md). A process started in the background of a non-interactive
+    # shell (`cmd &`, scripts) inherits SIGINT ignored, so rclpy's handler has no Python
+    # handler to chain to and no KeyboardInterrupt is raised (for SIGTERM there never is one).
+    # The node then only stops when spin() sees that rclpy's signal thread shut the context
+    # down. That thread first triggers the executor's guard condition, then shuts the context
+    # down: a main thread woken in between sees the context still ok and waits again, without
+    # a timeout, for ever. Here a signal only sets `stop` (also from a thread of its own, see
+    # _watch_signals), the executor never waits longer than SPIN_PERIOD, this thread shuts
+    # down in order, and should that not finish within STOP_DEADLINE, the process exits.
+    stop = threading.Event()
+    finished = threading.Event()
+    _watch_signals(stop, finished)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     # Multi-threaded so that joint states and parameter services are served while a plan runs
     # (see EXECUTOR_THREADS); plans themselves stay serialised by their callback group.
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
@@ -379,8 +435,9 @@ def main(args=None):
     try:
         node = EllipathNode()
         executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+    except ExternalShutdownException:
         pass
     except (EllipathError, ParameterException) as error:
         get_logger(NODE_NAME).fatal(f'invalid parameters: {error}')
@@ -390,8 +447,13 @@ def main(args=None):
         if node is not None:
             # The executor does not wait for callbacks still running in its threads.
             node.wait_until_idle(SHUTDOWN_WAIT)
+            # A trajectory published just before the stop must still reach its subscribers: a
+            # large one leaves in fragments after publish() returns.
+            for publisher in node.publishers:
+                publisher.wait_for_all_acked(Duration(seconds=FLUSH_WAIT))
             node.destroy_node()
         rclpy.try_shutdown()
+        finished.set()
     return exit_code
 
 
