@@ -35,7 +35,7 @@ setup(
     extras_require={
         'plot': ['matplotlib>=3.5'],
         'bench': ['toppra>=0.6'],
-        'test': ['pytest'],
+        'test': ['pytest', 'pytest-timeout', 'hypothesis'],
     },
     zip_safe=True,
     maintainer='ellipath_ros maintainers',

@@ -52,6 +52,10 @@ _PLAN_OPTIONS = (
      'largest TCP deviation of the controller interpolation between knots [m]'),
     ('--output-mode', 'output_mode', str, 'joint trajectory as knots or samples'),
     ('--sample-period', 'sample_period', float, 'period of samples output [s]'),
+    ('--workspace-radius', 'workspace_radius', float,
+     'safe workspace: largest TCP distance from the base axis [m]'),
+    ('--workspace-z-min', 'workspace_z_min', float, 'safe workspace: lowest TCP height [m]'),
+    ('--workspace-z-max', 'workspace_z_max', float, 'safe workspace: highest TCP height [m]'),
 )
 
 
@@ -78,12 +82,16 @@ def _add_plan_arguments(parser):
     for option, name, kind, text in _PLAN_OPTIONS:
         parser.add_argument(option, dest=name, type=kind, default=CORE_DEFAULTS[name],
                             help=f'{text} (default: %(default)s)')
+    parser.add_argument('--keep-out-boxes', nargs='*', type=float, default=[],
+                        metavar='V', help='boxes the TCP must not enter, 6 values each: xmin '
+                        'ymin zmin xmax ymax zmax [m] (default: none)')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
 
 
 def _config_from(args):
     """Build the planner config from the parsed options (validated by the core)."""
-    return PlannerConfig.from_flat({name: getattr(args, name) for _, name, _, _ in _PLAN_OPTIONS})
+    values = {name: getattr(args, name) for _, name, _, _ in _PLAN_OPTIONS}
+    return PlannerConfig.from_flat({**values, 'keep_out_boxes': args.keep_out_boxes})
 
 
 def plan_result(args):

@@ -56,6 +56,8 @@ current values, and an invalid change is refused with its reason while the previ
 configuration stays in force.
 """
 
+import os
+import signal
 import sys
 import threading
 import time
@@ -100,6 +102,7 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -111,8 +114,14 @@ NODE_NAME = 'ellipath_node'
 # default group that serves the parameter services and clear_queue). Planning and release
 # run in threads of their own, so intake never waits behind a plan.
 EXECUTOR_THREADS = 3
-# How long shutdown waits for the planning and release threads [s].
-SHUTDOWN_WAIT = 2.0
+# How long shutdown waits for the planning and release threads (a plan in progress) [s].
+SHUTDOWN_WAIT = 5.0
+# Longest wait of the executor in main() [s]: a stop request is seen at least this often.
+SPIN_PERIOD = 0.1
+# At shutdown, how long each publisher may take to have its last messages acknowledged [s].
+FLUSH_WAIT = 0.5
+# After a signal, the process ends this soon even if the orderly shutdown is stuck [s].
+STOP_DEADLINE = SHUTDOWN_WAIT + 3.0
 # Depth of the pose topics' subscription queues: far above queue_depth, so that a burst is
 # read by intake (which rejects what the cycle queue cannot take, with a status) instead of
 # being dropped by DDS without a word.
@@ -606,9 +615,44 @@ def _stamp_key(stamp):
     return (stamp.sec, stamp.nanosec)
 
 
+def _watch_signals(stop, finished):
+    """
+    Make SIGINT and SIGTERM set ``stop``; exit if ``finished`` is not set STOP_DEADLINE later.
+
+    rclpy's own handlers are not used (see main()): they shut the context down at once, from
+    a thread of their own, while a plan may still be publishing, and they rely on waking the
+    executor's wait, a wake-up that is sometimes lost. Python runs a signal handler only in
+    the main thread, between two bytecodes; the main thread spends its time in rcl_wait. So
+    a thread of its own learns of the signal from the wake-up file descriptor, which the
+    C-level handler writes in whichever thread takes the signal, sets ``stop`` and, should
+    the orderly shutdown of main() not finish in time, ends the process.
+    """
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda signum, frame: stop.set())
+
+    def watch():
+        os.read(read_fd, 1)
+        stop.set()
+        if not finished.wait(STOP_DEADLINE):
+            get_logger(NODE_NAME).error(
+                f'shutdown not finished {STOP_DEADLINE:g} s after the signal: exiting now')
+            os._exit(0)
+
+    threading.Thread(target=watch, name='signal_watch', daemon=True).start()
+
+
 def main(args=None):
     """
     Run ``ellipath_node`` until SIGINT or SIGTERM; return the process exit code.
+
+    A signal stops the node within ``SPIN_PERIOD``: the planning thread finishes the plan in
+    progress, if any (up to ``SHUTDOWN_WAIT``), nothing more is released, the messages already
+    published are flushed, then the node and the context are shut down, and
+    the exit code is 0. If that is not done ``STOP_DEADLINE`` after the signal, an error is
+    logged and the process exits with status 0 anyway.
 
     Parameters
     ----------
@@ -619,7 +663,20 @@ def main(args=None):
     # The release thread must wake at a trajectory's end even while the planning thread runs
     # NumPy code: see SWITCH_INTERVAL.
     sys.setswitchinterval(SWITCH_INTERVAL)
-    rclpy.init(args=args)
+    # Why not rclpy's signal handlers and executor.spin(): the node sometimes ignored the first
+    # SIGINT (docs/reliability.md). A process started in the background of a non-interactive
+    # shell (`cmd &`, scripts) inherits SIGINT ignored, so rclpy's handler has no Python
+    # handler to chain to and no KeyboardInterrupt is raised (for SIGTERM there never is one).
+    # The node then only stops when spin() sees that rclpy's signal thread shut the context
+    # down. That thread first triggers the executor's guard condition, then shuts the context
+    # down: a main thread woken in between sees the context still ok and waits again, without
+    # a timeout, for ever. Here a signal only sets `stop` (also from a thread of its own, see
+    # _watch_signals), the executor never waits longer than SPIN_PERIOD, this thread shuts
+    # down in order, and should that not finish within STOP_DEADLINE, the process exits.
+    stop = threading.Event()
+    finished = threading.Event()
+    _watch_signals(stop, finished)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     # Multi-threaded so that intake, joint states and the services are served concurrently
     # (see EXECUTOR_THREADS); planning and release have threads of their own.
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
@@ -628,8 +685,9 @@ def main(args=None):
     try:
         node = EllipathNode()
         executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+    except ExternalShutdownException:
         pass
     except (EllipathError, ParameterException) as error:
         get_logger(NODE_NAME).fatal(f'invalid parameters: {error}')
@@ -641,8 +699,13 @@ def main(args=None):
             node.stop_workers()
         executor.shutdown()
         if node is not None:
+            # A trajectory published just before the stop must still reach its subscribers: a
+            # large one leaves in fragments after publish() returns.
+            for publisher in node.publishers:
+                publisher.wait_for_all_acked(Duration(seconds=FLUSH_WAIT))
             node.destroy_node()
         rclpy.try_shutdown()
+        finished.set()
     return exit_code
 
 

@@ -25,6 +25,7 @@ calls it at start-up and on every run-time change, with the current values merge
 requested ones, so a change is accepted or rejected as a whole.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
@@ -94,6 +95,10 @@ class ParameterSpec:
         descriptor = ParameterDescriptor(
             name=self.name, type=self.type_.value, read_only=self.read_only,
             description=f'{self.description} [{self.unit}]' if self.unit else self.description)
+        if self.type_ == _DOUBLE_ARRAY and not self.default:
+            # rclpy types an empty list as a byte array and a YAML [] as not set: such a
+            # parameter cannot be statically typed. build_settings checks its values instead.
+            descriptor.dynamic_typing = True
         if self.choices:
             descriptor.additional_constraints = 'one of: ' + ', '.join(self.choices)
         if self.type_ == _DOUBLE and self.low is not None:
@@ -227,6 +232,16 @@ PARAMETER_TABLE = (
           low=1e-7, high=0.01),
     _core('sample_period', _DOUBLE, 's', 'Time between points (output_mode samples)',
           low=1e-4, high=0.1),
+    # Safe workspace: every plan is checked against it as executed (JTC's interpolation).
+    _core('workspace_radius', _DOUBLE, 'm',
+          'Safe workspace: largest TCP distance from the base axis', low=0.001, high=10.0),
+    _core('workspace_z_min', _DOUBLE, 'm', 'Safe workspace: lowest TCP height',
+          low=-10.0, high=10.0),
+    _core('workspace_z_max', _DOUBLE, 'm', 'Safe workspace: highest TCP height',
+          low=-10.0, high=10.0),
+    _core('keep_out_boxes', _DOUBLE_ARRAY, 'm',
+          'Axis-aligned boxes the TCP must not enter, 6 values per box: xmin, ymin, zmin, '
+          'xmax, ymax, zmax (empty: none)'),
 )
 
 PARAMETER_NAMES = tuple(spec.name for spec in PARAMETER_TABLE)
@@ -331,7 +346,8 @@ def build_settings(values):
     core_values = {}
     for spec in PARAMETER_TABLE:
         value = values[spec.name]
-        if spec.type_ in (_DOUBLE_ARRAY, _STRING_ARRAY):
+        if (spec.type_ in (_DOUBLE_ARRAY, _STRING_ARRAY) and isinstance(value, Sequence)
+                and not isinstance(value, str)):
             value = list(value)  # rclpy may hand arrays over as array.array
         if spec.core:
             core_values[spec.name] = value

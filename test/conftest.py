@@ -16,9 +16,11 @@
 Shared test set-up: keep DDS on this host and give each ROS test module its own domain.
 
 The environment is set here, at import, before any test module imports or initialises
-rclpy. A module that uses ROS sets ``ROS_DOMAIN_OFFSET`` (0, 1, 2, ...); its domain id is
-``ELLIPATH_TEST_DOMAIN_ID`` (default 46) plus that offset, so two test sessions on one host
-can be kept apart by giving them different ``ELLIPATH_TEST_DOMAIN_ID`` values.
+rclpy. A module that uses ROS sets ``ROS_DOMAIN_OFFSET`` (0, 1, 2, ...); its domain id is a
+base plus that offset. The base is the caller's ``ROS_DOMAIN_ID`` if set, else
+``ELLIPATH_TEST_DOMAIN_ID``, else 46, so two test sessions on one host are kept apart by
+giving them different ``ROS_DOMAIN_ID`` (or ``ELLIPATH_TEST_DOMAIN_ID``) values, e.g.
+``ROS_DOMAIN_ID=40 make test`` uses domains 40, 41, ...
 """
 
 import os
@@ -26,7 +28,8 @@ import os
 import pytest
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-DOMAIN_ID_BASE = int(os.environ.get('ELLIPATH_TEST_DOMAIN_ID', '46'))
+DOMAIN_ID_BASE = int(os.environ.get('ROS_DOMAIN_ID')
+                     or os.environ.get('ELLIPATH_TEST_DOMAIN_ID') or '46')
 os.environ['ROS_DOMAIN_ID'] = str(DOMAIN_ID_BASE)
 
 

@@ -107,3 +107,21 @@ def test_without_json_argument_errors_keep_argparses_usage_on_stderr(capsys):
     captured = capsys.readouterr()
     assert status == 2 and captured.out == ''
     assert captured.err.startswith('usage: ellipath plan') and '--place' in captured.err
+
+
+@pytest.mark.parametrize('options, reason', [
+    (['--workspace-z-max', '-0.72'], 'above workspace_z_max = -0.72 m'),
+    (['--keep-out-boxes', '0.1', '-0.1', '-0.9', '0.2', '0.1', '-0.6'],
+     r'inside keep_out_boxes[0] = [0.1, -0.1, -0.9, 0.2, 0.1, -0.6] m'),
+])
+def test_the_safe_workspace_options_reject_a_path_through_it(capsys, options, reason):
+    status, result = run(capsys, EXAMPLE + options)
+    assert status == 2 and result['error']['kind'] == 'workspace'
+    assert result['error']['message'].startswith('executed TCP of the transfer leg[')
+    assert reason in result['error']['message']
+
+
+def test_keep_out_boxes_need_six_values_each(capsys):
+    status, result = run(capsys, EXAMPLE + ['--keep-out-boxes', '0.1', '0.2'])
+    assert status == 2
+    assert result['error']['message'].startswith('keep_out_boxes: expected a multiple of 6')

@@ -507,6 +507,8 @@ def test_the_parameter_files_load_and_plan(make_harness, file_name):
         expected.update(arc_policy='paper', profile='curvature', curvature_r=0.77)
     for name, value in expected.items():
         actual = harness.node.get_parameter(name).value
+        if actual is None and value == []:
+            continue  # rcl's YAML parser leaves an empty list not set: no keep-out boxes
         assert (list(actual) if isinstance(value, list) else actual) == value, name
     status, trajectory = harness.cycle(PICK, PLACE)
     assert status.level == DiagnosticStatus.OK, status.message

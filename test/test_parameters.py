@@ -60,8 +60,13 @@ def test_core_defaults_are_taken_from_the_core():
 
 @pytest.mark.parametrize('spec', PARAMETER_TABLE, ids=lambda spec: spec.name)
 def test_every_row_is_complete_and_consistent(spec):
-    assert Parameter.Type.from_parameter_value(spec.default) == spec.type_
     descriptor = spec.descriptor()
+    if spec.default == []:
+        # rclpy types an empty list as a byte array: the row must accept any type.
+        assert descriptor.dynamic_typing
+    else:
+        assert Parameter.Type.from_parameter_value(spec.default) == spec.type_
+        assert not descriptor.dynamic_typing
     assert descriptor.name == spec.name
     assert descriptor.type == spec.type_.value
     assert len(descriptor.description) > 10
@@ -103,7 +108,8 @@ def test_ellipath_yaml_lists_every_parameter_at_its_default():
     assert list(values) == list(PARAMETER_NAMES), 'same parameters, in table order'
     for spec in PARAMETER_TABLE:
         value = values[spec.name]
-        assert Parameter.Type.from_parameter_value(value) == spec.type_, spec.name
+        if value != []:
+            assert Parameter.Type.from_parameter_value(value) == spec.type_, spec.name
         assert value == defaults[spec.name], spec.name
 
 

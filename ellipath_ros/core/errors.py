@@ -55,6 +55,12 @@ class LimitError(EllipathError):
     kind = 'limit'
 
 
+class WorkspaceError(EllipathError):
+    """A point of the motion lies outside the safe workspace or inside a keep-out box."""
+
+    kind = 'workspace'
+
+
 def require_finite(name, value):
     """Return ``value`` as float, or raise if it is not a finite number."""
     try:

@@ -292,6 +292,41 @@ def quintic_interpolate(traj, t):
     return tuple(array[0] for array in result) if scalar else result
 
 
+def quintic_positions(traj, t):
+    """
+    Positions only of :func:`quintic_interpolate`, cheaper for many samples.
+
+    The coefficients are computed once per knot segment instead of once per sample, and no
+    derivative is evaluated.
+
+    Parameters
+    ----------
+    traj : JointTrajectoryData
+        The knots.
+    t : array_like, shape (N,)
+        Times from start [s].
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+        Positions [rad].
+
+    """
+    times = np.atleast_1d(np.asarray(t, dtype=float))
+    knots = traj.time_from_start
+    if knots.size == 1:
+        return traj.positions[np.zeros(times.shape, dtype=int)]
+    starts = np.arange(knots.size - 1)
+    coefficients = _quintic_coefficients(traj, starts, starts + 1)
+    segment = np.clip(np.searchsorted(knots, times, side='right') - 1, 0, knots.size - 2)
+    offset = np.clip(times - knots[segment], 0.0, None)[:, np.newaxis]
+    c = coefficients[segment]
+    position = ((((c[:, 5] * offset + c[:, 4]) * offset + c[:, 3]) * offset + c[:, 2])
+                * offset + c[:, 1]) * offset + c[:, 0]
+    position[times >= knots[-1]] = traj.positions[-1]
+    return position
+
+
 def _quintic_coefficients(knots, start, end):
     """
     Polynomial coefficients in powers of ``t - t_start``, shape (S, 6, 3).

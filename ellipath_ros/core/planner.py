@@ -32,11 +32,12 @@ from .errors import InvalidInputError, LimitError, require_point, require_range
 from .geometry import ArcPolicy, plan_path, require_coordinates
 from .joint_trajectory import (
     check_joint_limits, DEFAULT_JOINT_NAMES, JointTrajectoryData, minimal_knots,
-    quintic_interpolate, sample_joint_trajectory, validate_jtc)
+    quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
     DeltaGeometry, forward_kinematics, inverse_kinematics, joint_accelerations,
     joint_velocities, JointLimits)
 from .timing import CartesianLimits, PROFILES, time_motion
+from .workspace import SafeWorkspace
 
 OUTPUT_MODES = ('knots', 'samples')
 # Path samples for the reachability check and the joint-speed cap: at most this far apart.
@@ -63,6 +64,14 @@ KNOT_REFINEMENT_FACTOR = 3.0
 MAX_LEG_DURATION = 60.0
 # Start and pick closer than this: the robot is already at the pick, no approach leg.
 SAME_POINT = 1e-6
+# Time step at which the executed motion (JTC's quintic through the points, through forward
+# kinematics) is checked against the safe workspace: at 4 m/s the TCP moves 0.4 mm per step,
+# so between two samples a bound is crossed by at most max_speed * step / 2 more.
+WORKSPACE_CHECK_PERIOD = 1e-4
+# The executed motion may cross a workspace bound by this much at a sample [m]: JTC's
+# interpolation wobbles by micrometres about a vertical segment on the boundary (a pick at
+# exactly the workspace radius); this is the default knot_tolerance, the check's resolution.
+EXECUTED_WORKSPACE_TOLERANCE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -95,6 +104,8 @@ class PlannerConfig:
         Period of ``'samples'`` output [s].
     joint_names : tuple of str
         Names of the joints of arm 0, 1, 2.
+    workspace : SafeWorkspace
+        Where the TCP may go; every plan is checked against it as executed.
 
     """
 
@@ -110,6 +121,7 @@ class PlannerConfig:
     output_mode: str = 'knots'
     sample_period: float = 0.004
     joint_names: tuple = DEFAULT_JOINT_NAMES
+    workspace: SafeWorkspace = field(default_factory=SafeWorkspace)
 
     def __post_init__(self):
         require_range('pick_clearance', self.pick_clearance, 0.0, 1.0, unit='m')
@@ -125,6 +137,11 @@ class PlannerConfig:
                 f'output_mode: expected one of {", ".join(OUTPUT_MODES)}, '
                 f'got {self.output_mode!r}')
         require_range('sample_period', self.sample_period, 1e-4, 0.1, unit='s')
+        if isinstance(self.joint_names, (str, bytes)) or not hasattr(self.joint_names,
+                                                                     '__iter__'):
+            # A string would be split into characters: 'abc' is not three joint names.
+            raise InvalidInputError(
+                f'joint_names: expected a list of 3 names, got {self.joint_names!r}')
         names = tuple(self.joint_names)
         if (len(names) != 3 or len(set(names)) != 3
                 or not all(isinstance(name, str) and name for name in names)):
@@ -154,7 +171,8 @@ class PlannerConfig:
         return cls(geometry=DeltaGeometry(**sections[DeltaGeometry]),
                    joint_limits=JointLimits(**sections[JointLimits]),
                    limits=CartesianLimits(**sections[CartesianLimits]),
-                   arc=ArcPolicy(**sections[ArcPolicy]), **top)
+                   arc=ArcPolicy(**sections[ArcPolicy]),
+                   workspace=SafeWorkspace(**sections[SafeWorkspace]), **top)
 
 
 # Flat parameter name -> the config section that owns it (others are PlannerConfig's own).
@@ -165,9 +183,12 @@ _SECTIONS = {
     'max_speed': CartesianLimits, 'max_accel': CartesianLimits, 'max_jerk': CartesianLimits,
     'max_accel_jump': CartesianLimits,
     'arc_policy': ArcPolicy, 'apex_clearance': ArcPolicy, 'min_radius': ArcPolicy,
+    'workspace_radius': SafeWorkspace, 'workspace_z_min': SafeWorkspace,
+    'workspace_z_max': SafeWorkspace, 'keep_out_boxes': SafeWorkspace,
 }
 _RENAMED = {'max_joint_velocity': 'max_velocity', 'max_joint_accel': 'max_acceleration',
-            'arc_policy': 'kind'}
+            'arc_policy': 'kind', 'workspace_radius': 'radius', 'workspace_z_min': 'z_min',
+            'workspace_z_max': 'z_max'}
 
 
 def _core_defaults():
@@ -175,13 +196,16 @@ def _core_defaults():
     defaults = {}
     default_config = PlannerConfig()
     sections = {DeltaGeometry: default_config.geometry, JointLimits: default_config.joint_limits,
-                CartesianLimits: default_config.limits, ArcPolicy: default_config.arc}
+                CartesianLimits: default_config.limits, ArcPolicy: default_config.arc,
+                SafeWorkspace: default_config.workspace}
     for name, owner in _SECTIONS.items():
         defaults[name] = getattr(sections[owner], _RENAMED.get(name, name))
     for item in fields(PlannerConfig):
-        if item.name not in ('geometry', 'joint_limits', 'limits', 'arc'):
+        if item.name not in ('geometry', 'joint_limits', 'limits', 'arc', 'workspace'):
             defaults[item.name] = getattr(default_config, item.name)
     defaults['joint_names'] = list(defaults['joint_names'])
+    # Flat, as the node's parameter holds it: 6 numbers per box.
+    defaults['keep_out_boxes'] = [value for box in defaults['keep_out_boxes'] for value in box]
     return defaults
 
 
@@ -319,7 +343,8 @@ def _interpolation_error(motion, trajectory, config, per_segment=8):
     return float(np.linalg.norm(tcp - motion.evaluate(t)[0], axis=1).max())
 
 
-def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None):
+def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None,
+                  leg='transfer'):
     """
     Plan one leg from ``pick`` to ``place``: path, timing, kinematics, JTC points.
 
@@ -332,6 +357,8 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     pick_clearance, place_clearance : float, optional
         Override the config's clearances (the approach leg lifts out of the
         previous place and descends onto the pick).
+    leg : str
+        Name of the leg in workspace errors (``'transfer'`` or ``'approach'``).
 
     Returns
     -------
@@ -341,13 +368,16 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     ------
     EllipathError
         ``invalid_input``, ``degenerate_geometry``, ``unreachable`` (naming the
-        first point out of reach) or ``limit``.
+        first point out of reach), ``workspace`` (naming the first point of the
+        executed motion outside the safe workspace, and its time in the leg) or ``limit``.
 
     """
     config = config or PlannerConfig()
     # The end points first, so an unreachable pick or place is named as such.
     inverse_kinematics(require_coordinates('pick', pick), config.geometry, name='pick')
     inverse_kinematics(require_coordinates('place', place), config.geometry, name='place')
+    config.workspace.check(pick, name='pick')
+    config.workspace.check(place, name='place')
     path = plan_path(
         pick, place,
         config.pick_clearance if pick_clearance is None else pick_clearance,
@@ -380,9 +410,21 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
             if attempt == SLOWDOWN_ATTEMPTS - 1:
                 raise
             slowdown *= SLOWDOWN_STEP
+    _check_executed_workspace(trajectory, config, leg)
     knot_positions = motion.evaluate(trajectory.time_from_start)[0]
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown)
+
+
+def _check_executed_workspace(trajectory, config, leg):
+    """Raise WorkspaceError if JTC's interpolation of ``trajectory`` leaves the workspace."""
+    times = trajectory.time_from_start
+    count = max(int(math.ceil((times[-1] - times[0]) / WORKSPACE_CHECK_PERIOD)) + 1, 2)
+    t = np.linspace(times[0], times[-1], count)
+    tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry,
+                             name='interpolated q')
+    config.workspace.check(tcp, name=f'executed TCP of the {leg} leg', times=t,
+                           tolerance=EXECUTED_WORKSPACE_TOLERANCE)
 
 
 def _joint_points(motion, config):
@@ -496,9 +538,11 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
     legs = (transfer,)
     trajectory = transfer.joint_trajectory
     if np.linalg.norm(pick - start) > SAME_POINT:
+        # The robot outside the safe workspace (moved there by hand) is not moved by a plan.
+        config.workspace.check(start, name='start')
         # Approach: lift out of wherever the robot is (as from a place), descend onto the pick.
         approach = plan_transfer(start, pick, config, pick_clearance=config.place_clearance,
-                                 place_clearance=config.pick_clearance)
+                                 place_clearance=config.pick_clearance, leg='approach')
         legs = (approach, transfer)
         trajectory = _concatenate(_hold(approach.joint_trajectory, pick_dwell), trajectory)
     elif pick_dwell > 0.0:

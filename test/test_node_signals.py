@@ -1,0 +1,212 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+ONE signal stops ellipath_node: exit status 0, no traceback, idle or while a plan runs.
+
+Each case starts ``python -m ellipath_ros.node`` (the multi-threaded executor of main()),
+waits for its ``ready`` log line, sends exactly one SIGINT or SIGTERM at some moment and
+expects the process to end within STOP_TIMEOUT. The idle cases run side by side, each node
+in a namespace of its own. In the planning case a pick and a place are sent, the signal
+follows the place while the (deliberately slow) plan runs: the node finishes the plan but
+releases nothing once told to stop, so the robot does not start a new move after the stop. The long statistical check (hundreds of runs) is scripts/signal_stop_check.py.
+"""
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import ellipath_ros
+from geometry_msgs.msg import PoseStamped
+import pytest
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from test_node_process import _pose
+from test_node_process import _spin_until
+from trajectory_msgs.msg import JointTrajectory
+
+ROS_DOMAIN_OFFSET = 2  # see conftest.py
+START_TIMEOUT = 30.0  # s, from process start to the ready line (imports, DDS)
+STOP_TIMEOUT = 10.0  # s, from the signal to the end of the process
+PACKAGE_ROOT = str(Path(ellipath_ros.__file__).resolve().parents[1])
+# output_mode samples every 0.1 ms: a plan of about a second, long enough to be interrupted.
+SLOW_PLAN = ('-p', 'output_mode:=samples', '-p', 'sample_period:=0.0001')
+
+
+class NodeProcess:
+    """``python -m ellipath_ros.node`` in a namespace of its own, its log collected."""
+
+    def __init__(self, env, namespace, *ros_args):
+        env = dict(env)
+        env['PYTHONPATH'] = os.pathsep.join(filter(None, [PACKAGE_ROOT, env.get('PYTHONPATH')]))
+        self.namespace = namespace
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'ellipath_ros.node', '--ros-args', '-r',
+             f'__ns:={namespace}', *ros_args],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.lines = []
+        self.ready = threading.Event()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self):
+        for line in self.process.stdout:
+            self.lines.append(line)
+            if 'ready:' in line:
+                self.ready.set()
+
+    def stop(self, sig):
+        """Send ``sig`` once (None: already sent); return (exit status, log), or fail."""
+        if sig is not None:
+            self.process.send_signal(sig)
+        try:
+            self.process.wait(timeout=STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            self._reader.join(timeout=5.0)
+            pytest.fail(f'{self.namespace}: still running {STOP_TIMEOUT} s after one signal:'
+                        f'\n{"".join(self.lines)}')
+        self._reader.join(timeout=5.0)
+        return self.process.returncode, ''.join(self.lines)
+
+    def kill(self):
+        """Kill the process if it still runs (test clean-up)."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+
+# (signal, seconds after the ready line): right away, soon, and after a long idle time.
+IDLE_CASES = [(signal.SIGINT, 0.0), (signal.SIGINT, 0.3), (signal.SIGINT, 1.5),
+              (signal.SIGINT, 4.5), (signal.SIGTERM, 0.0), (signal.SIGTERM, 2.0)]
+
+
+def test_one_signal_stops_an_idle_node_cleanly(ros_env):
+    tag = f'ellipath_signal_test_{os.getpid()}'
+    nodes = [NodeProcess(ros_env, f'/{tag}_{index}') for index in range(len(IDLE_CASES))]
+    results = [None] * len(nodes)
+    try:
+        def run(index):
+            sig, delay = IDLE_CASES[index]
+            node = nodes[index]
+            if not node.ready.wait(START_TIMEOUT):
+                results[index] = ('not ready', ''.join(node.lines))
+                return
+            time.sleep(delay)
+            results[index] = node.stop(sig)
+
+        threads = [threading.Thread(target=run, args=(index,)) for index in range(len(nodes))]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    finally:
+        for node in nodes:
+            node.kill()
+    for (sig, delay), (status, log) in zip(IDLE_CASES, results):
+        assert status == 0, f'{sig.name} {delay} s after ready: status {status}\n{log}'
+        assert 'Traceback' not in log, f'{sig.name} {delay} s after ready:\n{log}'
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=lambda sig: sig.name)
+def test_one_signal_while_planning_stops_cleanly_and_releases_nothing(ros_env, ros_context,
+                                                                      sig):
+    node = NodeProcess(ros_env, f'/ellipath_signal_plan_{sig.name}_{os.getpid()}', *SLOW_PLAN)
+    client = Node('signal_test_client', context=ros_context, namespace=node.namespace)
+    executor = SingleThreadedExecutor(context=ros_context)
+    try:
+        executor.add_node(client)
+        picks = client.create_publisher(PoseStamped, 'pick_pose', 10)
+        places = client.create_publisher(PoseStamped, 'place_pose', 10)
+        received = []
+        trajectories = client.create_subscription(
+            JointTrajectory, 'joint_trajectory',
+            lambda message: received.append(time.monotonic()), 10)
+        assert node.ready.wait(START_TIMEOUT), ''.join(node.lines)
+        assert _spin_until(executor, lambda: (
+            picks.get_subscription_count() and places.get_subscription_count()
+            and trajectories.get_publisher_count()), START_TIMEOUT), 'node not discovered'
+        # A first cycle proves the topics are connected both ways (a message sent while
+        # discovery is still under way can be lost); it is sent again until it arrives.
+        for _ in range(3):
+            picks.publish(_pose(0.10, 0.05, -0.85))
+            _spin_until(executor, lambda: False, 0.3)
+            places.publish(_pose(-0.15, -0.10, -0.82))
+            if _spin_until(executor, lambda: received, 20.0):
+                break
+        assert received, 'no trajectory for the first pair'
+        received.clear()
+        picks.publish(_pose(-0.15, -0.10, -0.82))
+        _spin_until(executor, lambda: False, 0.3)
+        places.publish(_pose(0.12, -0.08, -0.88))
+        _spin_until(executor, lambda: received, 0.15)
+        assert not received, 'the plan ended before the signal: make it slower'
+        signalled = time.monotonic()
+        node.process.send_signal(sig)
+        # Keep receiving until the process has ended: a trajectory released after the signal
+        # would arrive in this window.
+        _spin_until(executor, lambda: node.process.poll() is not None, STOP_TIMEOUT)
+        _spin_until(executor, lambda: False, 0.2)
+        status, log = node.stop(None)
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.kill()
+    assert status == 0, log
+    assert 'Traceback' not in log, log
+    # The plan in progress when the signal came was not released after the stop.
+    assert not received, f'trajectory released {received[0] - signalled:.3f} s after the signal'
+
+
+# Run by the tests below in a process of their own (the signal handlers are process-wide).
+WATCH_SCRIPT = """
+import os, signal, sys, threading
+from ellipath_ros import node
+node.STOP_DEADLINE = 0.5
+stop, finished = threading.Event(), threading.Event()
+node._watch_signals(stop, finished)
+# The main thread never takes this signal: only the watch thread can see it.
+signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+os.kill(os.getpid(), signal.SIGTERM)
+print('stop seen' if stop.wait(5.0) else 'stop missed', flush=True)
+if sys.argv[1] == 'finish':
+    finished.set()
+    print('finished', flush=True)
+else:
+    threading.Event().wait(5.0)  # a shutdown that never ends
+    print('not ended', flush=True)
+"""
+
+
+@pytest.mark.parametrize('mode', ['finish', 'hang'])
+def test_a_signal_is_seen_whichever_thread_takes_it_and_a_stuck_shutdown_still_ends(mode):
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [PACKAGE_ROOT, env.get('PYTHONPATH')]))
+    result = subprocess.run([sys.executable, '-c', WATCH_SCRIPT, mode], env=env,
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert 'Traceback' not in result.stderr
+    assert result.stdout.splitlines()[0] == 'stop seen'
+    if mode == 'finish':
+        assert result.stdout.splitlines()[1:] == ['finished']
+        assert 'shutdown not finished' not in result.stderr
+    else:
+        # Ended by the watch thread 0.5 s after the signal, before the 5 s wait was over.
+        assert 'not ended' not in result.stdout
+        assert 'shutdown not finished 0.5 s after the signal: exiting now' in result.stderr
