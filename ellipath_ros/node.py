@@ -224,9 +224,13 @@ class EllipathNode(Node):
             f'joints {list(planner.joint_names)}. Pose orientations are ignored (3-DOF Delta '
             'robot: only the position is used).')
 
+    def request_stop(self):
+        """Make the planning and release threads stop; nothing is released from now on."""
+        self._sequencer.stop()
+
     def stop_workers(self, timeout=SHUTDOWN_WAIT):
         """Stop the planning and release threads; wait up to ``timeout`` s for each."""
-        self._sequencer.stop()
+        self.request_stop()
         for worker in self._workers:
             if worker is not threading.current_thread():
                 worker.join(timeout)
@@ -615,9 +619,12 @@ def _stamp_key(stamp):
     return (stamp.sec, stamp.nanosec)
 
 
-def _watch_signals(stop, finished):
+def _watch_signals(stop, finished, on_stop):
     """
     Make SIGINT and SIGTERM set ``stop``; exit if ``finished`` is not set STOP_DEADLINE later.
+
+    The watching thread also calls ``on_stop`` at once, so that nothing new is released to the
+    robot in the up to ``SPIN_PERIOD`` before the main thread sees ``stop``.
 
     rclpy's own handlers are not used (see main()): they shut the context down at once, from
     a thread of their own, while a plan may still be publishing, and they rely on waking the
@@ -636,6 +643,7 @@ def _watch_signals(stop, finished):
     def watch():
         os.read(read_fd, 1)
         stop.set()
+        on_stop()
         if not finished.wait(STOP_DEADLINE):
             get_logger(NODE_NAME).error(
                 f'shutdown not finished {STOP_DEADLINE:g} s after the signal: exiting now')
@@ -675,12 +683,12 @@ def main(args=None):
     # down in order, and should that not finish within STOP_DEADLINE, the process exits.
     stop = threading.Event()
     finished = threading.Event()
-    _watch_signals(stop, finished)
+    node = None
+    _watch_signals(stop, finished, lambda: node is not None and node.request_stop())
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     # Multi-threaded so that intake, joint states and the services are served concurrently
     # (see EXECUTOR_THREADS); planning and release have threads of their own.
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
-    node = None
     exit_code = 0
     try:
         node = EllipathNode()

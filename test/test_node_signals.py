@@ -20,7 +20,8 @@ waits for its ``ready`` log line, sends exactly one SIGINT or SIGTERM at some mo
 expects the process to end within STOP_TIMEOUT. The idle cases run side by side, each node
 in a namespace of its own. In the planning case a pick and a place are sent, the signal
 follows the place while the (deliberately slow) plan runs: the node finishes the plan but
-releases nothing once told to stop, so the robot does not start a new move after the stop. The long statistical check (hundreds of runs) is scripts/signal_stop_check.py.
+releases nothing once told to stop, so the robot does not start a new move after the stop.
+The long statistical check (hundreds of runs) is scripts/signal_stop_check.py.
 """
 
 import os
@@ -171,7 +172,8 @@ def test_one_signal_while_planning_stops_cleanly_and_releases_nothing(ros_env, r
     assert status == 0, log
     assert 'Traceback' not in log, log
     # The plan in progress when the signal came was not released after the stop.
-    assert not received, f'trajectory released {received[0] - signalled:.3f} s after the signal'
+    assert not received, (
+        f'trajectory released {received[0] - signalled:.3f} s after the signal')
 
 
 # Run by the tests below in a process of their own (the signal handlers are process-wide).
@@ -180,7 +182,7 @@ import os, signal, sys, threading
 from ellipath_ros import node
 node.STOP_DEADLINE = 0.5
 stop, finished = threading.Event(), threading.Event()
-node._watch_signals(stop, finished)
+node._watch_signals(stop, finished, lambda: None)
 # The main thread never takes this signal: only the watch thread can see it.
 signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
 os.kill(os.getpid(), signal.SIGTERM)
