@@ -15,12 +15,15 @@
 """
 Benchmark of the timing profiles against the time-optimal bound without jerk limit.
 
-For the paper's example and the 25-305-25 mm cycle, at two values of
-``max_accel_jump``, it times the path with the ``curvature`` profile (the
-paper's) and the ``time_optimal`` one, and compares both with the bound that
-TOPP-RA computes on the same path and limits without the jerk limit (speed,
-acceleration norm, and the speed at T1/T2 that the acceleration step allows).
-No jerk-limited motion can beat that bound. TOPP-RA is an optional
+For the paper's example and the 25-305-25 mm cycle it times the ``g2`` join
+with the ``time_optimal`` profile, and the paper's path (``join`` paper) at two
+values of ``max_accel_jump`` with the ``curvature`` profile (the paper's) and
+the ``time_optimal`` one. Each is compared with the bound that TOPP-RA computes
+on the paper's path with the same speed and acceleration limits, without the
+jerk limit and without a bound on the acceleration step at T1/T2 (``bound``);
+the paper-join rows are also compared with the bound that keeps their step
+(``ratio to step bound``). No jerk-limited motion can beat these bounds (the
+g2 path is within 0.5 mm of the paper's, its bound within 0.1 %). TOPP-RA is an optional
 dependency (the ``bench`` extra); the planner itself never imports it.
 """
 
@@ -40,19 +43,23 @@ CYCLES = (
      ArcPolicy('apex_clearance', apex_clearance=0.025)),
 )
 MAX_ACCEL_JUMPS = (25.0, 5.0)
+# A step bound this high never binds: the bound without a join constraint.
+NO_STEP_BOUND = 1e4
 # TOPP-RA discretisation: grid points along the path, facets of the polygon that stands in for
 # the circle |acceleration| <= max_accel (circumscribed: the bound stays a lower bound).
 BOUND_GRID_POINTS = 2000
 BOUND_FACETS = 64
 COLUMNS = (
     ('cycle', 'cycle', '{}'),
+    ('join', 'join', '{}'),
     ('max_accel_jump', 'max accel jump [m/s²]', '{:g}'),
     ('profile', 'profile', '{}'),
     ('duration', 'duration [s]', '{:.4f}'),
     ('ratio', 'ratio to bound', '{:.3f}'),
-    ('peak_speed', 'peak speed [m/s]', '{:.2f}'),
-    ('peak_accel', 'peak accel [m/s²]', '{:.1f}'),
-    ('peak_jerk', 'peak jerk [m/s³]', '{:.0f}'),
+    ('step_ratio', 'ratio to step bound', '{:.3f}'),
+    ('peak_speed', 'planned peak speed [m/s]', '{:.2f}'),
+    ('peak_accel', 'planned peak accel [m/s²]', '{:.1f}'),
+    ('peak_jerk', 'planned peak jerk [m/s³]', '{:.0f}'),
     ('plan_ms', 'planning [ms]', '{:.1f}'),
 )
 
@@ -147,7 +154,7 @@ def _median_ms(function, repeats):
 
 def run_benchmark(repeats=20, max_accel_jumps=MAX_ACCEL_JUMPS, limits=None):
     """
-    Time both profiles on both cycles and compare them with the TOPP-RA bound.
+    Time the g2 join and both profiles on the paper's path; compare with TOPP-RA.
 
     Parameters
     ----------
@@ -162,9 +169,10 @@ def run_benchmark(repeats=20, max_accel_jumps=MAX_ACCEL_JUMPS, limits=None):
     Returns
     -------
     list of dict
-        One row per cycle, jump value and profile (``bound`` first), keys as
-        in ``COLUMNS``; the bound row has no peaks (None), its planning time
-        is TOPP-RA's.
+        Per cycle: the bound without a step constraint, the g2 join, then per
+        jump value the bound with that step and both profiles on the paper's
+        path; keys as in ``COLUMNS`` (missing ones print as '-'); bound rows
+        have no peaks, their planning time is TOPP-RA's.
 
     Raises
     ------
@@ -177,23 +185,36 @@ def run_benchmark(repeats=20, max_accel_jumps=MAX_ACCEL_JUMPS, limits=None):
     base = limits or CartesianLimits()
     rows = []
     for name, pick, place, policy in CYCLES:
-        path = plan_path(pick, place, policy=policy)
+        paper = plan_path(pick, place, policy=policy, join='paper')
+        free = CartesianLimits(base.max_speed, base.max_accel, base.max_jerk, NO_STEP_BOUND)
+        bound, bound_ms = _median_ms(lambda: topp_bound(paper, free), max(repeats // 10, 1))
+        rows.append({'cycle': name, 'join': 'paper', 'profile': 'TOPP-RA bound',
+                     'duration': bound, 'ratio': 1.0, 'plan_ms': bound_ms})
+        g2 = plan_path(pick, place, policy=policy, join='g2')
+        rows.append(_timed_row(name, g2, free, 'time_optimal', bound, None, repeats))
         for jump in max_accel_jumps:
             case = CartesianLimits(base.max_speed, base.max_accel, base.max_jerk, jump)
-            bound, bound_ms = _median_ms(lambda: topp_bound(path, case), max(repeats // 10, 1))
-            rows.append({'cycle': name, 'max_accel_jump': jump, 'profile': 'TOPP-RA bound',
-                         'duration': bound, 'ratio': 1.0, 'peak_speed': None,
-                         'peak_accel': None, 'peak_jerk': None, 'plan_ms': bound_ms})
+            step_bound, step_ms = _median_ms(lambda: topp_bound(paper, case),
+                                             max(repeats // 10, 1))
+            rows.append({'cycle': name, 'join': 'paper', 'max_accel_jump': jump,
+                         'profile': 'TOPP-RA step bound', 'duration': step_bound,
+                         'ratio': step_bound / bound, 'step_ratio': 1.0, 'plan_ms': step_ms})
             for profile in ('time_optimal', 'curvature'):
-                motion, plan_ms = _median_ms(
-                    lambda: time_motion(path, case, profile=profile), repeats)
-                metrics = motion.metrics()
-                rows.append({'cycle': name, 'max_accel_jump': jump, 'profile': profile,
-                             'duration': motion.duration, 'ratio': motion.duration / bound,
-                             'peak_speed': metrics['peak_speed'],
-                             'peak_accel': metrics['peak_accel'],
-                             'peak_jerk': metrics['peak_jerk'], 'plan_ms': plan_ms})
+                row = _timed_row(name, paper, case, profile, bound, step_bound, repeats)
+                row['max_accel_jump'] = jump
+                rows.append(row)
     return rows
+
+
+def _timed_row(name, path, limits, profile, bound, step_bound, repeats):
+    """Time ``path`` with ``profile``; return its row (ratios to the bounds given)."""
+    motion, plan_ms = _median_ms(lambda: time_motion(path, limits, profile=profile), repeats)
+    metrics = motion.metrics()
+    return {'cycle': name, 'join': path.join, 'profile': profile,
+            'duration': motion.duration, 'ratio': motion.duration / bound,
+            'step_ratio': None if step_bound is None else motion.duration / step_bound,
+            'peak_speed': metrics['peak_speed'], 'peak_accel': metrics['peak_accel'],
+            'peak_jerk': metrics['peak_jerk'], 'plan_ms': plan_ms}
 
 
 def format_table(rows):

@@ -479,16 +479,21 @@ class BlendedArc(_ParametricArc):
     def offset(self, t):
         """Return delta and its first three derivatives by t, each of the shape of ``t``."""
         t = np.asarray(t, dtype=float)
-        out = np.zeros((4,) + t.shape)
+        flat = t.reshape(-1)
+        out = np.zeros((4, flat.size))
         l_ = self.ellipse.l
-        for span, u, sign in ((self.span_1, (math.pi - t) / self.span_1, -1.0),
-                              (self.span_2, t / self.span_2, 1.0)):
-            near = u < 1.0
-            f, f1, f2, f3 = _blend_shape(np.minimum(u, 1.0))
+        for span, u, sign in ((self.span_1, (math.pi - flat) / self.span_1, -1.0),
+                              (self.span_2, flat / self.span_2, 1.0)):
+            near = np.flatnonzero(u < 1.0)
+            if near.size == 0:
+                continue
+            f, f1, f2, f3 = _blend_shape(u[near])
             # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2.
-            out += np.where(near, [sign * l_ * span ** 2 * f, l_ * span * f1, sign * l_ * f2,
-                                   l_ * f3 / span], 0.0)
-        return out
+            out[0, near] = sign * l_ * span ** 2 * f
+            out[1, near] = l_ * span * f1
+            out[2, near] = sign * l_ * f2
+            out[3, near] = l_ * f3 / span
+        return out.reshape((4,) + t.shape)
 
     def derivatives(self, t):
         """Return Q and its first three derivatives by t, each (N, 2) [m, m/rad, ...]."""
