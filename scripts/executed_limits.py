@@ -54,13 +54,35 @@ def dense_check(trajectory, geometry, step, spread):
                      np.abs(qddot).max()])
 
 
+def _report(args, refused, ratios, under, points, plan_ms, durations):
+    """Print the worst and p99 executed ratios so far (and how they were found)."""
+    out = sys.stdout
+    out.write(f'{len(ratios)} pairs (join {args.join}, seed {args.seed}, {refused} '
+              f'unreachable skipped), check every {args.step * 1e6:g} us\n')
+    out.write('executed / limit          worst     p99  median\n')
+    for index, key in enumerate(KEYS):
+        column = ratios[:, index]
+        out.write(f'  {key:22s} {column.max():7.4f} {np.percentile(column, 99):7.4f} '
+                  f'{np.median(column):7.4f}\n')
+    out.write('check above reported peak (worst, per quantity): '
+              + ', '.join(f'{key} {value:+.3%}' for key, value in zip(KEYS, under.max(axis=0)))
+              + '\n')
+    out.write(f'points per move: median {np.median(points):.0f}, mean {np.mean(points):.1f}, '
+              f'max {np.max(points)}; duration mean {np.mean(durations) * 1e3:.1f} ms; '
+              f'plan median {np.median(plan_ms):.0f} ms, p90 '
+              f'{np.percentile(plan_ms, 90):.0f} ms\n')
+    out.flush()
+
+
 def main(argv=None):
+    """Run the check (arguments as on the command line) and print the summaries."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('--pairs', type=int, default=1000)
     parser.add_argument('--seed', type=int, default=14)
     parser.add_argument('--join', default='g2')
     parser.add_argument('--step', type=float, default=2e-6)
     parser.add_argument('--spread', type=int, default=5)
+    parser.add_argument('--report-every', type=int, default=100)
     args = parser.parse_args(argv)
     config = PlannerConfig.from_flat({'join': args.join})
     limits, joints = config.limits, config.joint_limits
@@ -87,22 +109,9 @@ def main(argv=None):
         under.append(found / reported - 1.0)
         points.append(leg.joint_trajectory.time_from_start.size)
         durations.append(leg.motion.duration)
-    ratios, under = np.array(ratios), np.array(under)
-    out = sys.stdout
-    out.write(f'{len(ratios)} pairs (join {args.join}, seed {args.seed}, {refused} '
-              f'unreachable skipped), check every {args.step * 1e6:g} us\n')
-    out.write('executed / limit          worst     p99  median\n')
-    for index, key in enumerate(KEYS):
-        column = ratios[:, index]
-        out.write(f'  {key:22s} {column.max():7.4f} {np.percentile(column, 99):7.4f} '
-                  f'{np.median(column):7.4f}\n')
-    out.write('check above reported peak (worst, per quantity): '
-              + ', '.join(f'{key} {value:+.3%}' for key, value in zip(KEYS, under.max(axis=0)))
-              + '\n')
-    out.write(f'points per move: median {np.median(points):.0f}, mean {np.mean(points):.1f}, '
-              f'max {np.max(points)}; duration mean {np.mean(durations) * 1e3:.1f} ms; '
-              f'plan median {np.median(plan_ms):.0f} ms, p90 '
-              f'{np.percentile(plan_ms, 90):.0f} ms\n')
+        if len(ratios) % args.report_every == 0 or len(ratios) == args.pairs:
+            _report(args, refused, np.array(ratios), np.array(under), points, plan_ms,
+                    durations)
     return 0
 
 
