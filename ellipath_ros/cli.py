@@ -27,7 +27,7 @@ import math
 import sys
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.geometry import ARC_POLICIES
+from ellipath_ros.core.geometry import ARC_POLICIES, JOINS
 from ellipath_ros.core.planner import CORE_DEFAULTS, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import PROFILES
 
@@ -39,6 +39,9 @@ _PLAN_OPTIONS = (
     ('--apex-clearance', 'apex_clearance', float,
      'apex height above the higher tangent point, arc apex_clearance [m]'),
     ('--min-radius', 'min_radius', float, 'smallest radius of curvature, arc min_radius [m]'),
+    ('--join', 'join', str, 'line-to-arc joins: ' + ', '.join(JOINS)),
+    ('--join-tolerance', 'join_tolerance', float,
+     "largest distance of the g2 path from the paper's [m]"),
     ('--profile', 'profile', str, 'motion profile: ' + ', '.join(PROFILES)),
     ('--r', 'curvature_r', float, "the paper's coefficient r, curvature profile [rad/m]"),
     ('--max-speed', 'max_speed', float, 'TCP speed limit [m/s]'),
@@ -128,12 +131,15 @@ def _format_human(result):
         f"apex height {number('apex_height')} m",
         f"motion ({result['profile']}): {number('duration', 1e3)} ms, segments "
         + ' / '.join(f'{value * 1e3:.4g}' for value in result['segment_durations']) + ' ms',
-        f"peaks: {number('peak_speed')} m/s, {number('peak_accel')} m/s^2, "
-        f"{number('peak_jerk')} m/s^3; joints {number('joint_peak_velocity')} rad/s, "
-        f"{number('joint_peak_accel')} rad/s^2",
-        f"joint trajectory: {result['n_points']} points, max interpolation error "
-        f"{number('max_interpolation_error', 1e3)} mm",
     ]
+    for kind in ('planned', 'executed'):
+        lines.append(
+            f"{kind} peaks: {number(kind + '.peak_speed')} m/s, "
+            f"{number(kind + '.peak_accel')} m/s^2, {number(kind + '.peak_jerk')} m/s^3; "
+            f"joints {number(kind + '.joint_peak_velocity')} rad/s, "
+            f"{number(kind + '.joint_peak_accel')} rad/s^2")
+    lines.append(f"joint trajectory: {result['n_points']} points, executed deviation at most "
+                 f"{number('executed.max_interpolation_error', 1e3)} mm")
     return '\n'.join(lines) + '\n'
 
 

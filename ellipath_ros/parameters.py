@@ -33,6 +33,7 @@ from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.geometry import ARC_POLICIES
+from ellipath_ros.core.geometry import JOINS
 from ellipath_ros.core.planner import CORE_DEFAULTS
 from ellipath_ros.core.planner import OUTPUT_MODES
 from ellipath_ros.core.planner import PlannerConfig
@@ -206,6 +207,13 @@ PARAMETER_TABLE = (
           '(arc_policy apex_clearance)', low=0.0, high=2.0),
     _core('min_radius', _DOUBLE, 'm', 'Smallest radius of curvature of the arc '
           '(arc_policy min_radius)', low=0.0, high=2.0),
+    _core('join', _STRING, '',
+          'Line-to-arc joins T1/T2: g2 = curvature-continuous transitions (no acceleration '
+          "step, bounded jerk), paper = the paper's path (acceleration step bounded by "
+          'max_accel_jump)', choices=JOINS),
+    _core('join_tolerance', _DOUBLE, 'm',
+          "Largest distance of the g2 path from the paper's path (join g2)", low=1e-6,
+          high=0.01),
     # Timing.
     _core('profile', _STRING, '',
           'Motion profile on the arc: time_optimal = jerk-limited time-optimal, curvature = '
@@ -217,7 +225,8 @@ PARAMETER_TABLE = (
     _core('max_accel', _DOUBLE, 'm/s^2', 'TCP acceleration norm limit', low=0.1, high=1.0e4),
     _core('max_jerk', _DOUBLE, 'm/s^3', 'TCP jerk limit', low=1.0, high=1.0e7),
     _core('max_accel_jump', _DOUBLE, 'm/s^2',
-          'Largest normal acceleration jump allowed at the line-to-arc joins T1 and T2',
+          'Largest normal acceleration jump allowed at the line-to-arc joins T1 and T2 '
+          '(join paper; a g2 join has none)',
           low=0.0, high=1.0e4),
     _core('max_joint_velocity', _DOUBLE, 'rad/s', 'Joint speed limit', low=0.01,
           high=1000.0),

@@ -37,20 +37,33 @@ def test_plan_json_reproduces_the_paper_and_has_every_key(capsys):
     assert round(result['theta_T1_deg'], 3) == 177.671
     assert round(result['arc_length_approx'], 5) == 0.32058
     assert round(result['apex_height'], 5) == 0.06852
-    assert result['path_length'] == pytest.approx(0.05 + result['arc_length'])
+    # The default g2 join bends the ellipse's ends a little: its bend is slightly longer.
+    assert result['path_length'] == pytest.approx(0.05 + result['segment_lengths'][1])
+    assert 0.0 < result['segment_lengths'][1] - result['arc_length'] < 0.002
     assert len(result['apex']) == 3 and result['apex'][2] < 0
-    for key in ('duration', 'peak_speed', 'peak_accel', 'peak_jerk', 'accel_jump_T1',
-                'accel_jump_T2', 'segment_durations', 'joint_names', 'joint_peak_velocity',
-                'joint_peak_accel', 'max_interpolation_error'):
+    for key in ('duration', 'planned.accel_jump_T1', 'planned.accel_jump_T2',
+                'segment_durations', 'joint_names', 'executed.max_interpolation_error'):
         assert key in result
+    for kind in ('planned', 'executed'):
+        for key in ('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
+                    'joint_peak_accel'):
+            assert result[f'{kind}.{key}'] > 0.0
     rows = result['joint_trajectory']
     assert len(rows['time_from_start']) == len(rows['positions']) == len(rows['velocities'])
     assert all(len(row) == 3 for row in rows['accelerations'])
 
 
 def test_curvature_profile_reports_the_papers_node_count(capsys):
-    status, result = run(capsys, EXAMPLE + ['--profile', 'curvature', '--r', '0.77'])
+    status, result = run(capsys, EXAMPLE + ['--profile', 'curvature', '--r', '0.77',
+                                            '--join', 'paper'])
     assert status == 0 and result['n_nodes'] == 80 and result['profile'] == 'curvature'
+    assert result['path_length'] == pytest.approx(0.05 + result['arc_length'])
+
+
+def test_curvature_profile_refuses_the_g2_join(capsys):
+    status, result = run(capsys, EXAMPLE + ['--profile', 'curvature'])
+    assert status != 0 and result['error']['kind'] == 'invalid_input'
+    assert result['error']['message'].startswith('join: expected paper')
 
 
 @pytest.mark.parametrize('place, kind', [

@@ -504,7 +504,7 @@ def test_the_parameter_files_load_and_plan(make_harness, file_name):
     harness = make_harness(cli_args=['--ros-args', '--params-file', str(CONFIG / file_name)])
     expected = parameter_defaults()
     if file_name == 'paper.yaml':
-        expected.update(arc_policy='paper', profile='curvature', curvature_r=0.77)
+        expected.update(arc_policy='paper', join='paper', profile='curvature', curvature_r=0.77)
     for name, value in expected.items():
         actual = harness.node.get_parameter(name).value
         if actual is None and value == []:

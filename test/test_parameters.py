@@ -121,7 +121,8 @@ def test_parameter_files_parse_with_rclpy():
 
 def test_paper_yaml_selects_the_papers_method():
     values = _yaml_parameters('paper.yaml')
-    assert values == {'arc_policy': 'paper', 'profile': 'curvature', 'curvature_r': 0.77}
+    assert values == {'arc_policy': 'paper', 'join': 'paper', 'profile': 'curvature',
+                      'curvature_r': 0.77}
     settings = build_settings({**parameter_defaults(), **values})
     assert settings.planner.profile == 'curvature'
 

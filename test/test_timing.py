@@ -322,3 +322,8 @@ def test_node_period_is_the_papers_time_step():
     assert motion.node_period == pytest.approx(arc_time / (motion.n_nodes - 1), rel=0.05)
     assert motion.scaled(2.0).node_period == pytest.approx(2.0 * motion.node_period)
     assert motion_of('paper', 'time_optimal').node_period is None
+
+
+def test_curvature_profile_takes_the_documented_time_on_the_papers_example():
+    """README and docs quote 2.2496 s for r = 0.77 (a slower law would break this)."""
+    assert round(motion_of('paper', 'curvature').duration, 4) == 2.2496

@@ -16,11 +16,13 @@
 The cycle benchmarks: durations against TOPP-RA's bound, and picks per minute.
 
 For the paper's example and the 25-305-25 mm cycle, at two values of
-``max_accel_jump``, the planner times the path with the ``time_optimal`` and
-the ``curvature`` (the paper's) profiles, and both are compared with the bound
-that TOPP-RA computes on the same path and Cartesian limits without the jerk
-limit and without the cap at the joins: no motion along that path can beat
-it. Joint limits are lifted to the top of their ranges so that the Cartesian
+``max_accel_jump``, the planner times the paper's path (``join`` paper) with
+the ``time_optimal`` and the ``curvature`` (the paper's) profiles, and the
+curvature-continuous path (``join`` g2, which has no acceleration step to cap)
+with ``time_optimal``. Each is compared with the bound that TOPP-RA computes on
+the paper's path with the same Cartesian limits, without the jerk limit and
+without the cap at the joins: no motion along that path can beat it (the g2
+path lies within 0.5 mm of it). Joint limits are lifted to the top of their ranges so that the Cartesian
 limits alone set the durations. All durations are *planned*; JTC executes the
 published points on the same time line.
 
@@ -37,7 +39,7 @@ import math
 
 import numpy as np
 
-from ..core.geometry import ArcPolicy
+from ..core.geometry import ArcPolicy, plan_path
 from ..core.kinematics import JointLimits
 from ..core.planner import plan_cycle, plan_transfer, PlannerConfig
 from ..core.timing import CartesianLimits
@@ -189,20 +191,20 @@ def cycle_rows(base=None, profiles=PROFILES, max_accel_jumps=MAX_ACCEL_JUMPS, pr
     _toppra()
     base = replace(base or PlannerConfig(), joint_limits=LIFTED_JOINT_LIMITS)
     joins = joins_of(base)
-    total = len(CYCLES) * len(joins) * len(max_accel_jumps) * len(profiles)
+    total = len(CYCLES) * len(max_accel_jumps) * sum(
+        len(_profiles_for(join, profiles)) for join in joins)
     rows = []
     for case, pick, place, policy in CYCLES:
+        paper_path = plan_path(pick, place, base.pick_clearance, base.place_clearance, policy,
+                               join='paper')
+        bound = topp_bound(paper_path, base.limits, join_cap=False)
         for join in joins:
             for jump in max_accel_jumps:
                 limits = replace(base.limits, max_accel_jump=jump)
                 config = with_join(replace(base, arc=policy, limits=limits), join)
-                bound = capped = None
-                for profile in profiles:
+                capped = topp_bound(paper_path, limits) if join == 'paper' else None
+                for profile in _profiles_for(join, profiles):
                     leg = plan_transfer(pick, place, replace(config, profile=profile))
-                    if bound is None:
-                        bound = topp_bound(leg.path, limits, join_cap=False)
-                        if join == 'paper':
-                            capped = topp_bound(leg.path, limits)
                     metrics = leg.motion.metrics()
                     row = {'case': case, 'profile': profile, 'join': join,
                            'max_accel_jump': jump, 'duration_s': leg.motion.duration,
@@ -217,6 +219,11 @@ def cycle_rows(base=None, profiles=PROFILES, max_accel_jumps=MAX_ACCEL_JUMPS, pr
                     if progress is not None:
                         progress(len(rows), total)
     return rows
+
+
+def _profiles_for(join, profiles):
+    """Return the profiles that apply to ``join`` (the paper's node rule needs its path)."""
+    return tuple(profile for profile in profiles if join == 'paper' or profile != 'curvature')
 
 
 def picks_per_minute(base=None):

@@ -231,8 +231,12 @@ def measure_legs(requests, config, budget_s, progress):
 
 
 def measure_curvature_requests(requests, settings, budget_s, progress):
-    """Time the planned requests again, from the same starts, with ``profile='curvature'``."""
-    config = replace(settings.planner, profile='curvature')
+    """
+    Time the planned requests again, from the same starts, with ``profile='curvature'``.
+
+    The paper's node rule lives on the paper's path, so these requests use ``join='paper'``.
+    """
+    config = replace(settings.planner, profile='curvature', join='paper')
     zero = Time()
 
     def request_again(request):

@@ -33,6 +33,13 @@ theta = t + theta_T2 (eq. 29). Closed forms used below: the radius of curvature
 at T1 and T2 is k**2 / l, the apex is at height sqrt(h**2 + k**2) and the
 smallest radius of curvature on the arc is b**2 / a (every half ellipse
 contains one end of the major axis).
+
+Joins (``join``): the paper's path (``'paper'``) goes straight from a vertical
+line (curvature 0) into the ellipse (curvature 1/rho_T), a curvature step. The
+``'g2'`` join (:class:`BlendedArc`) keeps the vertical lines whole and bends
+the first and last stretch of the ellipse horizontally by a quintic in its
+parameter, so that the curvature rises continuously from 0 at T1 (falls to 0
+at T2) and the path stays within ``join_tolerance`` of the paper's.
 """
 
 from dataclasses import dataclass, field
@@ -43,6 +50,19 @@ import numpy as np
 from .errors import DegenerateGeometryError, InvalidInputError, require_point, require_range
 
 ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
+# How the vertical lines meet the arc: a curvature-continuous transition, or the paper's step.
+JOINS = ('g2', 'paper')
+DEFAULT_JOIN_TOLERANCE = 5e-4
+# Largest value of the transition shape u**2 (1 - u)**3 / 2 on [0, 1] (at u = 2/5).
+# Largest value of the transition shape u**2 (1 - u)**3 / 2 on [0, 1] (at u = 2/5).
+_BLEND_PEAK = 54.0 / 3125.0
+# A transition spans at most this share of the arc's parameter on its side of the apex...
+_BLEND_APEX_SHARE = 0.8
+# ... and at most this much of the parameter range [0, pi] (the two never overlap).
+_BLEND_MAX_SPAN = 0.45 * math.pi
+# The bent curve must keep at least this share of the ellipse's smallest parameter speed.
+_BLEND_MIN_SPEED_SHARE = 0.2
+_DENSE_SAMPLES = 4097
 
 # As phi* nears the critical angle the paper's ellipse collapses onto the chord T1-T2
 # (k -> 0): the arc rises only k above the chord's midpoint, its radius at T1 and T2 is
@@ -177,8 +197,90 @@ def elliptic_e(m):
     return math.pi / (2.0 * a) * (1.0 - c_squared_sum)
 
 
+class _ParametricArc:
+    """
+    Arc-length bookkeeping of a plane curve P(t), t from pi (T1) to 0 (T2).
+
+    Subclasses provide ``speed(t)`` (= |dP/dt|) and call ``_build_length_table``
+    in ``__post_init__``; this gives ``s_from_t`` and ``t_from_s``.
+    """
+
+    def _build_length_table(self, breaks=()):
+        """
+        Arc-length table: s at panel bounds, t running from pi (s = 0) to 0.
+
+        ``breaks`` are parameters where the curve's derivatives jump (a panel
+        bound each, so that no quadrature panel straddles one).
+        """
+        setattr_ = object.__setattr__
+        panel_t = np.unique(np.concatenate((np.linspace(math.pi, 0.0, _N_PANELS + 1),
+                                            breaks)))[::-1]
+        setattr_(self, '_panel_t', panel_t)
+        setattr_(self, '_panel_speed', self.speed(panel_t))
+        setattr_(self, '_panel_s', np.concatenate(
+            ([0.0], np.cumsum(self._integral(panel_t[:-1], panel_t[1:])))))
+
+    def _integral(self, t_start, t_end):
+        """Return the arc length between t_start and t_end (elementwise), >= 0."""
+        t_start = np.asarray(t_start, dtype=float)
+        t_end = np.asarray(t_end, dtype=float)
+        half = 0.5 * (t_end - t_start)
+        nodes = (0.5 * (t_end + t_start))[..., None] + half[..., None] * _GL_NODES
+        return np.abs(half) * (self.speed(nodes) @ _GL_WEIGHTS)
+
+    def s_from_t(self, t):
+        """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
+        t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
+        # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
+        count = self._panel_t.size - 1
+        panel = np.clip(count - np.searchsorted(self._panel_t[::-1], t, side='left'), 0,
+                        count - 1)
+        return self._panel_s[panel] + self._integral(self._panel_t[panel], t)
+
+    def t_from_s(self, s):
+        """Return t at arc length ``s`` from T1 (Newton on the exact length), shape of s."""
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self._panel_s[-1])
+        panel = np.clip(np.searchsorted(self._panel_s, s, side='right') - 1, 0,
+                        self._panel_s.size - 2)
+        t0, t1 = self._panel_t[panel], self._panel_t[panel + 1]
+        s0, s1 = self._panel_s[panel], self._panel_s[panel + 1]
+        # Cubic Hermite guess from the panel ends (dt/ds = -1/|P'|), then Newton steps.
+        width = np.maximum(s1 - s0, 1e-300)
+        x = (s - s0) / width
+        slope0 = -width / self._panel_speed[panel]
+        slope1 = -width / self._panel_speed[panel + 1]
+        t = ((2 * x ** 3 - 3 * x ** 2 + 1) * t0 + (x ** 3 - 2 * x ** 2 + x) * slope0
+             + (-2 * x ** 3 + 3 * x ** 2) * t1 + (x ** 3 - x ** 2) * slope1)
+        t = np.clip(t, t1, t0)
+        for _ in range(_NEWTON_STEPS):
+            residual = s0 + self._integral(t0, t) - s
+            t = np.clip(t + residual / np.maximum(self.speed(t), 1e-300), t1, t0)
+        return t
+
+    def curvature_and_rate(self, t):
+        """
+        Return the curvature kappa [1/m] and dkappa/ds [1/m**2] at ``t``, each (N,).
+
+        kappa = (x' y'' - y' x'') / |P'|**3 (positive: the arc bends towards the
+        centre), s growing from T1 (ds/dt = -|P'|).
+        """
+        _, d1, d2, d3 = self.derivatives(t)
+        sigma = np.linalg.norm(d1, axis=-1)
+        cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+        cross_t = d1[:, 0] * d3[:, 1] - d1[:, 1] * d3[:, 0]
+        sigma_t = np.einsum('ij,ij->i', d1, d2) / sigma
+        kappa = cross / sigma ** 3
+        kappa_t = cross_t / sigma ** 3 - 3.0 * cross * sigma_t / sigma ** 4
+        return kappa, -kappa_t / sigma
+
+    @property
+    def length(self):
+        """Arc length from T1 to T2 [m] (the table's total)."""
+        return float(self._panel_s[-1])
+
+
 @dataclass(frozen=True, eq=False)
-class EllipticArc:
+class EllipticArc(_ParametricArc):
     """
     Half ellipse from T1 = (-l, -h) over the top to T2 = (l, h), paper frame.
 
@@ -229,12 +331,7 @@ class EllipticArc:
         for name, value in (('a', a), ('b', b), ('phi', phi), ('theta_T2', theta_t2),
                             ('theta_T1', theta_t2 + math.pi)):
             setattr_(self, name, value)
-        # Arc-length table: s at panel bounds, t running from pi (s = 0) to 0.
-        panel_t = np.linspace(math.pi, 0.0, _N_PANELS + 1)
-        setattr_(self, '_panel_t', panel_t)
-        setattr_(self, '_panel_speed', self.speed(panel_t))
-        setattr_(self, '_panel_s', np.concatenate(
-            ([0.0], np.cumsum(self._integral(panel_t[:-1], panel_t[1:])))))
+        self._build_length_table()
 
     # -- parameterisation ------------------------------------------------------------
     def point(self, t):
@@ -252,6 +349,17 @@ class EllipticArc:
         """Return |dP/dt|, shape (N,) [m/rad]."""
         sin_t, cos_t = np.sin(t), np.cos(t)
         return np.sqrt((self.l * sin_t) ** 2 + (self.k * cos_t - self.h * sin_t) ** 2)
+
+    def derivatives(self, t):
+        """Return P, dP/dt, d2P/dt2 = -P and d3P/dt3 = -dP/dt at ``t``, each (N, 2)."""
+        p = self.point(t)
+        d1 = self.derivative(t)
+        return p, d1, -p, -d1
+
+    @property
+    def tightest_t(self):
+        """Parameter t of the tightest point (the major-axis end on the arc) [rad]."""
+        return float(self.t_from_theta(math.pi * math.ceil(self.theta_T2 / math.pi)))
 
     def theta_from_t(self, t):
         """Return the paper's parameter theta = t + theta_T2 [rad]."""
@@ -279,39 +387,6 @@ class EllipticArc:
         a, b = self.a, self.b
         return 0.5 * (math.pi * (a + b) / 2.0 + math.pi / math.sqrt(2.0) * math.hypot(a, b))
 
-    def _integral(self, t_start, t_end):
-        """Return the arc length between t_start and t_end (elementwise), >= 0."""
-        t_start = np.asarray(t_start, dtype=float)
-        t_end = np.asarray(t_end, dtype=float)
-        half = 0.5 * (t_end - t_start)
-        nodes = (0.5 * (t_end + t_start))[..., None] + half[..., None] * _GL_NODES
-        return np.abs(half) * (self.speed(nodes) @ _GL_WEIGHTS)
-
-    def s_from_t(self, t):
-        """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
-        t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
-        panel = np.clip(((math.pi - t) / math.pi * _N_PANELS).astype(int), 0, _N_PANELS - 1)
-        return self._panel_s[panel] + self._integral(self._panel_t[panel], t)
-
-    def t_from_s(self, s):
-        """Return t at arc length ``s`` from T1 (Newton on the exact length), shape of s."""
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self._panel_s[-1])
-        panel = np.clip(np.searchsorted(self._panel_s, s, side='right') - 1, 0, _N_PANELS - 1)
-        t0, t1 = self._panel_t[panel], self._panel_t[panel + 1]
-        s0, s1 = self._panel_s[panel], self._panel_s[panel + 1]
-        # Cubic Hermite guess from the panel ends (dt/ds = -1/|P'|), then Newton steps.
-        width = np.maximum(s1 - s0, 1e-300)
-        x = (s - s0) / width
-        slope0 = -width / self._panel_speed[panel]
-        slope1 = -width / self._panel_speed[panel + 1]
-        t = ((2 * x ** 3 - 3 * x ** 2 + 1) * t0 + (x ** 3 - 2 * x ** 2 + x) * slope0
-             + (-2 * x ** 3 + 3 * x ** 2) * t1 + (x ** 3 - x ** 2) * slope1)
-        t = np.clip(t, t1, t0)
-        for _ in range(_NEWTON_STEPS):
-            residual = s0 + self._integral(t0, t) - s
-            t = np.clip(t + residual / np.maximum(self.speed(t), 1e-300), t1, t0)
-        return t
-
     # -- landmarks -----------------------------------------------------------------
     @property
     def apex(self):
@@ -333,6 +408,163 @@ class EllipticArc:
     def end_radius(self):
         """Radius of curvature at T1 and T2, k**2 / l [m]."""
         return self.k * self.k / self.l
+
+
+def _blend_shape(u):
+    """
+    Return f(u) = u**2 (1 - u)**3 / 2 and its first three derivatives, u in [0, 1].
+
+    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = 0 at u = 1: subtracted from
+    the ellipse with the right scale it cancels the curvature at the vertical
+    line and vanishes to second order where it meets the ellipse.
+    """
+    return ((u ** 2 - 3.0 * u ** 3 + 3.0 * u ** 4 - u ** 5) / 2.0,
+            (2.0 * u - 9.0 * u ** 2 + 12.0 * u ** 3 - 5.0 * u ** 4) / 2.0,
+            1.0 - 9.0 * u + 18.0 * u ** 2 - 10.0 * u ** 3,
+            -9.0 + 36.0 * u - 30.0 * u ** 2)
+
+
+@dataclass(frozen=True, eq=False)
+class BlendedArc(_ParametricArc):
+    """
+    The ellipse with curvature-continuous (G2) transitions at T1 and T2, paper frame.
+
+    Q(t) = P(t) + (delta(t), 0): the ellipse bent horizontally near its ends.
+    Near T1 (u = (pi - t) / span_1 < 1) delta = -l span_1**2 f(u), near T2
+    (u = t / span_2 < 1) delta = +l span_2**2 f(u), elsewhere 0, with the quintic
+    f(u) = u**2 (1 - u)**3 / 2 (:func:`_blend_shape`). Since d2P/dt2 = -P,
+    x'' = -l cos t + delta'' is 0 at T1 and T2: the curvature starts and ends at
+    0 (the vertical line's), the tangent stays vertical there, and at u = 1 the
+    bent curve meets the ellipse with equal position, tangent and curvature
+    (delta, delta', delta'' all vanish). Why this transition and not a
+    clothoid: it is closed-form in the ellipse's own parameter (exact
+    derivatives to the third, hence exact curvature and dkappa/ds for the
+    timing, no Fresnel integrals), it needs no shift of the ellipse (the
+    vertical lines and the ellipse beyond the transition stay the paper's),
+    heights are untouched (delta is horizontal, so the apex height is the
+    paper's), and the deviation from the paper's path is bounded in closed
+    form: |delta| <= l span**2 max f = l span**2 * 54/3125. The price: any
+    transition that starts on the vertical line and ends on the ellipse must
+    turn as much as the ellipse does over the same stretch, so its curvature
+    overshoots the ellipse's (by up to ~37 % here), and it rises with
+    dkappa/ds about 9 kappa_T / (transition length) at T1 and T2.
+
+    Attributes
+    ----------
+    ellipse : EllipticArc
+        The paper's ellipse.
+    span_1, span_2 : float
+        Parameter widths [rad] of the transitions at T1 and T2, in
+        (0, 0.45 pi].
+
+    """
+
+    ellipse: EllipticArc
+    span_1: float
+    span_2: float
+    _panel_t: np.ndarray = field(init=False, repr=False)
+    _panel_s: np.ndarray = field(init=False, repr=False)
+    _panel_speed: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.ellipse, EllipticArc):
+            raise InvalidInputError(
+                f'ellipse: expected an EllipticArc, got {type(self.ellipse).__name__}')
+        for name in ('span_1', 'span_2'):
+            require_range(name, getattr(self, name), 0.0, _BLEND_MAX_SPAN, low_open=True,
+                          unit='rad')
+        self._build_length_table((math.pi - self.span_1, self.span_2))
+
+    def offset(self, t):
+        """Return delta and its first three derivatives by t, each of the shape of ``t``."""
+        t = np.asarray(t, dtype=float)
+        flat = t.reshape(-1)
+        out = np.zeros((4, flat.size))
+        l_ = self.ellipse.l
+        for span, u, sign in ((self.span_1, (math.pi - flat) / self.span_1, -1.0),
+                              (self.span_2, flat / self.span_2, 1.0)):
+            near = np.flatnonzero(u < 1.0)
+            if near.size == 0:
+                continue
+            f, f1, f2, f3 = _blend_shape(u[near])
+            # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2.
+            out[0, near] = sign * l_ * span ** 2 * f
+            out[1, near] = l_ * span * f1
+            out[2, near] = sign * l_ * f2
+            out[3, near] = l_ * f3 / span
+        return out.reshape((4,) + t.shape)
+
+    def derivatives(self, t):
+        """Return Q and its first three derivatives by t, each (N, 2) [m, m/rad, ...]."""
+        p, d1, d2, d3 = self.ellipse.derivatives(t)
+        delta = self.offset(t)
+        for value, extra in zip((p, d1, d2, d3), delta):
+            value[:, 0] += extra
+        return p, d1, d2, d3
+
+    def point(self, t):
+        """Return points Q(t), shape (N, 2) [m]."""
+        return self.derivatives(np.atleast_1d(t))[0]
+
+    def speed(self, t):
+        """Return |dQ/dt| [m/rad], shape of ``t``."""
+        t = np.asarray(t, dtype=float)
+        ellipse = self.ellipse
+        delta_1 = self.offset(t)[1]
+        sin_t, cos_t = np.sin(t), np.cos(t)
+        return np.sqrt((delta_1 - ellipse.l * sin_t) ** 2
+                       + (ellipse.k * cos_t - ellipse.h * sin_t) ** 2)
+
+    def _dense(self):
+        t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
+        return t, self.curvature_and_rate(t)[0]
+
+    @property
+    def min_radius(self):
+        """Smallest radius of curvature on the bent arc [m] (dense sampling)."""
+        return 1.0 / float(self._dense()[1].max())
+
+    @property
+    def tightest_t(self):
+        """Parameter t of the largest curvature (dense sampling) [rad]."""
+        t, kappa = self._dense()
+        return float(t[int(np.argmax(kappa))])
+
+    @property
+    def end_radius(self):
+        """Radius of curvature at T1 and T2: infinite (the curvature is 0 there)."""
+        return math.inf
+
+    def max_deviation(self):
+        """Bound on the horizontal distance from the ellipse [m]: l span**2 max f."""
+        return self.ellipse.l * max(self.span_1, self.span_2) ** 2 * _BLEND_PEAK
+
+
+def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
+    """
+    Return the :class:`BlendedArc` of ``ellipse`` that deviates at most ``tolerance``.
+
+    Each transition is as long as the tolerance allows (a longer one raises the
+    curvature more gently, which lets the motion through it faster), but ends
+    before ``_BLEND_APEX_SHARE`` of the way to the apex and within
+    ``_BLEND_MAX_SPAN``; spans are halved while the bent curve would slow its
+    parameter speed to below ``_BLEND_MIN_SPEED_SHARE`` of the ellipse's.
+    """
+    tolerance = require_range('join_tolerance', tolerance, 0.0, 0.01, low_open=True, unit='m')
+    widest = math.sqrt(tolerance / (_BLEND_PEAK * ellipse.l))
+    t_apex = math.atan2(ellipse.k, ellipse.h)
+    span_1 = min(widest, _BLEND_APEX_SHARE * (math.pi - t_apex), _BLEND_MAX_SPAN)
+    span_2 = min(widest, _BLEND_APEX_SHARE * t_apex, _BLEND_MAX_SPAN)
+    t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
+    slowest = float(ellipse.speed(t).min())
+    for _ in range(20):
+        bent = BlendedArc(ellipse, span_1, span_2)
+        if float(bent.speed(t).min()) >= _BLEND_MIN_SPEED_SHARE * slowest:
+            return bent
+        span_1, span_2 = 0.5 * span_1, 0.5 * span_2
+    raise DegenerateGeometryError(
+        f'join: expected a regular G2 transition for l = {ellipse.l:.6g} m, '
+        f'h = {ellipse.h:.6g} m, got none; use join paper')
 
 
 def require_finite_h(h):
@@ -435,7 +667,12 @@ class PickPlacePath:
         Horizontal unit vector u from P1 towards P2, shape (3,) (zero for a
         vertical move).
     segment_lengths : numpy.ndarray
-        Lengths of (lift, arc, descent) [m], shape (3,).
+        Lengths of (lift, bend, descent) [m], shape (3,).
+    bend : EllipticArc or BlendedArc or None
+        The curve followed from T1 to T2: the arc itself (``join`` 'paper') or
+        the arc with G2 transitions (``join`` 'g2'); None without an arc.
+    join : str
+        One of ``JOINS``.
 
     """
 
@@ -446,6 +683,15 @@ class PickPlacePath:
     arc: EllipticArc | None
     direction: np.ndarray
     segment_lengths: np.ndarray
+    bend: object = None
+    join: str = 'paper'
+
+    def __post_init__(self):
+        if self.join not in JOINS:
+            raise InvalidInputError(
+                f'join: expected one of {", ".join(JOINS)}, got {self.join!r}')
+        if self.bend is None:
+            object.__setattr__(self, 'bend', self.arc)
 
     @property
     def segment_ends(self):
@@ -511,13 +757,10 @@ class PickPlacePath:
         return PathSamples(position, tangent, curvature, rate)
 
     def _evaluate_arc(self, s_arc, mask, position, tangent, curvature, rate):
-        """Fill the arc samples: derivatives by s from those by t (g = ds/dt = -|P'|)."""
-        arc = self.arc
-        t = arc.t_from_s(s_arc)
-        p = arc.point(t)
-        d1 = arc.derivative(t)
-        d2 = -p
-        d3 = -d1
+        """Fill the bend samples: derivatives by s from those by t (g = ds/dt = -|P'|)."""
+        bend = self.bend
+        t = bend.t_from_s(s_arc)
+        p, d1, d2, d3 = bend.derivatives(t)
         sigma = np.linalg.norm(d1, axis=-1)
         sigma_1 = np.einsum('ij,ij->i', d1, d2) / sigma
         sigma_2 = ((np.einsum('ij,ij->i', d2, d2) + np.einsum('ij,ij->i', d1, d3)) / sigma
@@ -541,7 +784,8 @@ def require_coordinates(name, point):
     return point
 
 
-def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=None):
+def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=None,
+              join='paper', join_tolerance=DEFAULT_JOIN_TOLERANCE):
     """
     Build the composite path from pick P1 to place P2.
 
@@ -553,6 +797,11 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
         Vertical segment lengths c1, c2 [m], in [0, 1].
     policy : ArcPolicy, optional
         How the ellipse is chosen; the paper's rule by default.
+    join : str
+        ``'paper'`` (default here: the paper's path, a curvature step at T1
+        and T2) or ``'g2'`` (:class:`BlendedArc`; the planner's default).
+    join_tolerance : float
+        Largest distance of the ``'g2'`` path from the paper's [m], in (0, 0.01].
 
     Returns
     -------
@@ -572,6 +821,8 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     c1 = require_range('pick_clearance', pick_clearance, 0.0, 1.0, unit='m')
     c2 = require_range('place_clearance', place_clearance, 0.0, 1.0, unit='m')
     policy = policy or ArcPolicy()
+    if join not in JOINS:
+        raise InvalidInputError(f'join: expected one of {", ".join(JOINS)}, got {join!r}')
     offset = place - pick
     horizontal = math.hypot(offset[0], offset[1])
     if np.linalg.norm(offset) < _MIN_MOVE_DISTANCE:
@@ -584,7 +835,8 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
         rises = offset[2] >= 0.0
         lengths = np.array([distance, 0.0, 0.0] if rises else [0.0, 0.0, distance])
         top = place if rises else pick
-        return PickPlacePath(pick, place, top.copy(), top.copy(), None, np.zeros(3), lengths)
+        return PickPlacePath(pick, place, top.copy(), top.copy(), None, np.zeros(3), lengths,
+                             join=join)
     up = np.array([0.0, 0.0, 1.0])
     tangent_1 = pick + c1 * up
     tangent_2 = place + c2 * up
@@ -596,5 +848,6 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
             f'{_MIN_ARC_RADIUS * 1e3:g} mm, got {arc.min_radius * 1e3:.3g} mm (a needle-thin '
             f'ellipse for l = {arc.l:.4g} m, h = {arc.h:.4g} m); use the min_radius arc policy '
             f'with a larger min_radius, or move pick and place further apart horizontally')
-    lengths = np.array([c1, arc.length, c2])
-    return PickPlacePath(pick, place, tangent_1, tangent_2, arc, direction, lengths)
+    bend = blend_arc(arc, join_tolerance) if join == 'g2' else arc
+    lengths = np.array([c1, bend.length, c2])
+    return PickPlacePath(pick, place, tangent_1, tangent_2, arc, direction, lengths, bend, join)

@@ -766,3 +766,38 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
                          f'{velocities[sample, joint]:.6g} {when}')
     raise LimitError(f'{name} acceleration: expected |q\u0308| \u2264 {amax:g} rad/s^2, got '
                      f'{accelerations[sample, joint]:.6g} {when}')
+
+
+def segment_polynomials(traj):
+    """
+    Return JTC's quintic of every segment, coefficients in powers of ``t - t_k``, (K-1, 6, 3).
+
+    Evaluate one with :func:`evaluate_segments`; a segment's polynomial extends
+    beyond its ends, which gives one-sided derivatives at the knots.
+    """
+    count = traj.time_from_start.size
+    index = np.arange(count - 1)
+    return _quintic_coefficients(traj, index, index + 1)
+
+
+def evaluate_segments(coefficients, offset, derivatives=True):
+    """
+    Return position, velocity, acceleration and jerk of polynomials (S, 6, 3) at (S, M).
+
+    Each is of shape (S, M, 3): joint angle [rad] and its time derivatives; only the
+    positions if not ``derivatives``.
+    """
+    if not derivatives:
+        return _evaluate_quintic(coefficients, offset, derivatives=False)
+    position, velocity, acceleration = _evaluate_quintic(coefficients, offset)
+    c = [coefficients[:, np.newaxis, k, :] for k in range(3, 6)]
+    x = offset[:, :, np.newaxis]
+    jerk = (60.0 * c[2] * x + 24.0 * c[1]) * x + 6.0 * c[0]
+    return position, velocity, acceleration, jerk
+
+
+def knots_at(motion, geometry, times, joint_names=DEFAULT_JOINT_NAMES):
+    """Return the exact joint states of ``motion`` at increasing ``times`` (N,) as knots."""
+    times = np.asarray(times, dtype=float)
+    q, qdot, qddot = _joint_states(motion, geometry, times)
+    return JointTrajectoryData(_names(joint_names), times, q, qdot, qddot)

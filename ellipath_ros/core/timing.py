@@ -458,12 +458,39 @@ class TimedMotion:
         period = require_range('sample_period', sample_period, 0.0, 0.1, low_open=True,
                                unit='s')
         period = max(period, self.duration / METRICS_SAMPLES)
-        speed, accel, jerk = _norms(self, _sample_times(self.duration, period))[1:]
+        speed, accel, jerk = _norms(self, _check_times(self, period))[1:]
         return {'duration': float(self.duration),
                 'segment_durations': [float(value) for value in self.segment_durations],
                 'peak_speed': float(speed.max()), 'peak_accel': float(accel.max()),
                 'peak_jerk': float(jerk.max()), 'accel_jump_T1': float(self.accel_jump_T1),
                 'accel_jump_T2': float(self.accel_jump_T2)}
+
+    def jerk_steps(self):
+        """
+        Return the times [s] (K,) and sizes [m/s**3] (K,) of the steps of the TCP jerk.
+
+        The jerk steps where the law's third derivative does (its piece bounds)
+        and where the path's curvature rate does (T1, T2 and, with a G2 join,
+        where the transitions meet the ellipse); the size is the norm of the
+        difference of the one-sided jerk vectors.
+        """
+        law_times = getattr(self.law, 'times', None)
+        candidates = [] if law_times is None else [law_times[1:-1] * self.time_scale]
+        path = self.path
+        if path.bend is not None:
+            bend = path.bend
+            marks = list(path.segment_ends[1:3])
+            if path.join == 'g2':
+                marks += list(path.segment_ends[1] + bend.s_from_t(
+                    np.array([math.pi - bend.span_1, bend.span_2])))
+            t = _sample_times(self.duration, CHECK_PERIOD)
+            candidates.append(np.interp(marks, self.path_state(t)[0], t))
+        times = np.unique(np.concatenate(candidates)) if candidates else np.zeros(0)
+        times = times[(times > 0.0) & (times < self.duration)]
+        epsilon = 1e-9 * self.duration
+        before = self.evaluate(np.maximum(times - epsilon, 0.0))[3]
+        after = self.evaluate(np.minimum(times + epsilon, self.duration))[3]
+        return times, np.linalg.norm(after - before, axis=1)
 
     def scaled(self, factor):
         """
@@ -505,6 +532,26 @@ def _sample_times(duration, period):
     return np.linspace(0.0, duration, int(math.ceil(duration / period)) + 1)
 
 
+def _check_times(motion, period):
+    """
+    Return sample times of ``motion`` for its peaks: a grid plus both sides of every piece bound.
+
+    Between the bounds of its constant-jerk pieces the motion is smooth, and the
+    largest jerk (often the largest acceleration) sits at a bound: the grid
+    alone would miss it by up to its period.
+    """
+    law_times = getattr(motion.law, 'times', None)
+    grid = _sample_times(motion.duration, period)
+    if law_times is None:
+        return grid
+    bounds = law_times[1:-1] * motion.time_scale
+    # Just off the bound on both sides: at the bound itself the law is the next piece's
+    # while the path may still be the previous segment's (at T1, T2).
+    epsilon = 1e-9 * motion.duration
+    return np.sort(np.concatenate((grid, np.maximum(bounds - epsilon, 0.0),
+                                   np.minimum(bounds + epsilon, motion.duration))))
+
+
 def _norms(motion, t):
     """Return (s', |velocity|, |acceleration|, |jerk|) of ``motion`` at ``t``, each (N,)."""
     s, v, a, j = motion.path_state(t)
@@ -532,7 +579,7 @@ def _within_limits(motion, limits, speed_cap):
 
 def _excess(motion, limits, speed_cap, period):
     """Return the uniform slow-down that brings the sampled motion within the limits (>= 0)."""
-    s, speed, accel, jerk = _norms(motion, _sample_times(motion.duration, period))
+    s, speed, accel, jerk = _norms(motion, _check_times(motion, period))
     factor = max(float(speed.max()) / limits.max_speed,
                  math.sqrt(float(accel.max()) / limits.max_accel),
                  float(jerk.max() / limits.max_jerk) ** (1.0 / 3.0))
@@ -621,6 +668,10 @@ def time_motion(path, limits=None, profile='time_optimal', r=0.77, speed_cap=Non
         raise InvalidInputError(
             f'speed_cap: expected a callable or None, got {type(speed_cap).__name__}')
     if profile == 'curvature':
+        if path.join != 'paper':
+            raise InvalidInputError(
+                f'join: expected paper with the curvature profile (its node rule is the '
+                f"paper's, on the ellipse), got {path.join!r}")
         motion = _curvature_motion(path, limits, r, speed_cap)
     else:
         motion = _optimal_motion(path, limits, speed_cap)
@@ -812,13 +863,11 @@ def _constant_limits(path, s_from, s_to, speed, limits):
 
 
 def _bend_length(path):
-    """Return the path length [m] of the arc's tightest point (a major-axis end), or None."""
-    arc = path.arc
-    if arc is None:
+    """Return the path length [m] of the bend's tightest point, or None without an arc."""
+    bend = path.bend
+    if bend is None:
         return None
-    # theta = 0 (mod pi) is a major-axis end; exactly one lies within the half ellipse.
-    theta = math.pi * math.ceil(arc.theta_T2 / math.pi)
-    return float(path.segment_lengths[0] + arc.s_from_t(arc.t_from_theta(theta)))
+    return float(path.segment_lengths[0] + bend.s_from_t(bend.tightest_t))
 
 
 def _curvature_motion(path, limits, r, speed_cap):
@@ -1251,26 +1300,25 @@ class _ArcPlanner:
     """The time-optimal construction on the arc: scans, joins and speed valleys."""
 
     def __init__(self, path, limits, speed_cap):
-        arc = path.arc
+        bend = path.bend
         self.path, self.limits = path, limits
         self.length = float(path.segment_lengths[1])
-        # Curvature on a fine grid of the ellipse parameter, resampled uniformly in s.
+        # Curvature on a fine grid of the curve parameter, resampled uniformly in s.
         # Cells no longer than the smallest radius of curvature (the arc may be a needle).
         intervals = int(min(TABLE_INTERVALS_MAX, max(TABLE_INTERVALS, 2 ** math.ceil(
-            math.log2(self.length / arc.min_radius)))))
+            math.log2(self.length / bend.min_radius)))))
         t = np.linspace(math.pi, 0.0, 2 * intervals + 1)
-        d1, p = arc.derivative(t), arc.point(t)
-        sigma = np.linalg.norm(d1, axis=1)
+        sigma = bend.speed(t)
         # Arc length by Simpson on pairs of intervals, scaled to the exact length.
         pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (math.pi / len(sigma))
         s_t = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2),
                         np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0)))
         s_t *= self.length / s_t[-1]
-        lk = arc.l * arc.k
         grid = np.linspace(0.0, self.length, intervals + 1)
-        kappa = np.interp(grid, s_t, lk / sigma ** 3)
-        # dkappa/ds = (dkappa/dt) / (ds/dt), ds/dt = -sigma, dsigma/dt = -(P' . P) / sigma.
-        kappa_s = np.interp(grid, s_t, -3.0 * lk * np.einsum('ij,ij->i', d1, p) / sigma ** 6)
+        kappa_t, kappa_s_t = bend.curvature_and_rate(t)
+        # The bend never turns the other way; a G2 end's 0 may round to -1e-14.
+        kappa = np.maximum(np.interp(grid, s_t, kappa_t), 0.0)
+        kappa_s = np.interp(grid, s_t, kappa_s_t)
         # The speed cap as stairs of CAP_STAIR cells, each at the lowest value it spans: the
         # scans level off on a stair and cruise, and two scans cruising on one stair meet.
         cells = np.full(intervals, math.inf)
@@ -1285,7 +1333,9 @@ class _ArcPlanner:
         # The ceiling places the speed valleys and their speeds.
         cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
         self.ceiling = self._cruise_speed(kappa, kappa_s, cap, CEILING_SHARE)
-        self.kappa_end = (float(kappa[0]), float(kappa[-1]))
+        # A G2 join's ends have curvature 0 exactly (the table holds rounding there).
+        self.kappa_end = ((0.0, 0.0) if path.join == 'g2'
+                          else (float(kappa[0]), float(kappa[-1])))
         self.hills = 0
 
     def _cruise_speed(self, kappa, kappa_s, cap, share):
@@ -1302,8 +1352,10 @@ class _ArcPlanner:
         """Return the speed aimed at at T1 (``at_start``) or T2, with s'' = 0 there."""
         limits = self.limits
         index = 0 if at_start else -1
-        speed = min(float(self.ceiling[index]),
-                    math.sqrt(limits.max_accel_jump / self.kappa_end[index]) * (1.0 - 1e-3),
+        # A G2 join has no curvature at T1/T2, hence no acceleration step to bound.
+        step_speed = (math.inf if self.kappa_end[index] <= 0.0 else
+                      math.sqrt(limits.max_accel_jump / self.kappa_end[index]) * (1.0 - 1e-3))
+        speed = min(float(self.ceiling[index]), step_speed,
                     _reach_speed(clearance, limits.max_accel * ACCEL_MARGIN,
                                  limits.max_jerk * JERK_MARGIN) * (1.0 - 1e-3))
         if speed_cap is not None and clearance > 0.0:

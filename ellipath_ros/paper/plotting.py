@@ -346,7 +346,8 @@ def write_figures(pick, place, out_dir, config=None):
     """
     config = config or PlannerConfig()
     _matplotlib()
-    curvature = plan_transfer(pick, place, replace(config, profile='curvature'))
+    # The paper's figures show the paper's path (its node rule lives on the ellipse).
+    curvature = plan_transfer(pick, place, replace(config, profile='curvature', join='paper'))
     arc = curvature.path.arc
     if arc is None:
         raise DegenerateGeometryError(
