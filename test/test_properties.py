@@ -45,7 +45,6 @@ from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import reachable
 from ellipath_ros.core.planner import CORE_DEFAULTS
 from ellipath_ros.core.planner import EXECUTED_WORKSPACE_TOLERANCE
-from ellipath_ros.core.planner import INTERPOLATION_SLACK
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import plan_transfer
 from ellipath_ros.core.planner import PlannerConfig
@@ -323,10 +322,10 @@ def _assert_safe(trajectory, start, place, config):
     t = np.linspace(times[0], times[-1], max(int((times[-1] - times[0]) / 2e-4), 2))
     tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry)
     # The planner checks the executed motion every WORKSPACE_CHECK_PERIOD, allowing
-    # EXECUTED_WORKSPACE_TOLERANCE; in between, the TCP (at most INTERPOLATION_SLACK above
-    # max_speed) moves up to half a period's travel further. That is the documented bound.
-    margin = (EXECUTED_WORKSPACE_TOLERANCE + (1.0 + INTERPOLATION_SLACK)
-              * config.limits.max_speed * WORKSPACE_CHECK_PERIOD / 2.0)
+    # EXECUTED_WORKSPACE_TOLERANCE; in between, the TCP (whose executed speed the planner
+    # keeps within max_speed) moves up to half a period's travel further: the documented bound.
+    margin = (EXECUTED_WORKSPACE_TOLERANCE
+              + config.limits.max_speed * WORKSPACE_CHECK_PERIOD / 2.0)
     assert config.workspace.contains(tcp, tolerance=margin).all()
     np.testing.assert_allclose(tcp[0], start, atol=END_TOLERANCE)
     np.testing.assert_allclose(tcp[-1], place, atol=END_TOLERANCE)

@@ -788,8 +788,8 @@ def evaluate_segments(coefficients, offset, derivatives=True):
     positions if not ``derivatives``.
     """
     if not derivatives:
-        return _evaluate_quintic(coefficients, offset, derivatives=False)
-    position, velocity, acceleration = _evaluate_quintic(coefficients, offset)
+        return evaluate_polynomials(coefficients, offset, derivatives=False)
+    position, velocity, acceleration = evaluate_polynomials(coefficients, offset)
     c = [coefficients[:, np.newaxis, k, :] for k in range(3, 6)]
     x = offset[:, :, np.newaxis]
     jerk = (60.0 * c[2] * x + 24.0 * c[1]) * x + 6.0 * c[0]
