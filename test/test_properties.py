@@ -422,11 +422,15 @@ def configurations(draw):
         'apex_clearance': draw(st.floats(0.001, 0.1)),
         'min_radius': draw(st.floats(0.001, 0.1)),
         'profile': draw(st.sampled_from(['time_optimal', 'curvature'])),
+        'join': draw(st.sampled_from(['g2', 'paper'])),
+        'join_tolerance': draw(st.sampled_from([1e-4, 5e-4, 2e-3])),
         'output_mode': draw(st.sampled_from(['knots', 'samples'])),
         'knot_tolerance': draw(st.sampled_from([1e-5, 1e-4, 1e-3])),
         'sample_period': draw(st.sampled_from([0.002, 0.004, 0.01])),
         'keep_out_boxes': draw(st.sampled_from([[], [-0.05, -0.05, -1.0, 0.05, 0.05, -0.9]])),
     }
+    if flat['profile'] == 'curvature':
+        flat['join'] = 'paper'  # the paper's node rule is defined on the paper's path only
     return PlannerConfig.from_flat(flat)
 
 

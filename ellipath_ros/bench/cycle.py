@@ -19,12 +19,12 @@ For the paper's example and the 25-305-25 mm cycle, at two values of
 ``max_accel_jump``, the planner times the paper's path (``join`` paper) with
 the ``time_optimal`` and the ``curvature`` (the paper's) profiles, and the
 curvature-continuous path (``join`` g2, which has no acceleration step to cap)
-with ``time_optimal``. Each is compared with the bound that TOPP-RA computes on
-the paper's path with the same Cartesian limits, without the jerk limit and
+with ``time_optimal``. Each is compared with the bound that TOPP-RA computes
+on the paper's path with the same Cartesian limits, without the jerk limit and
 without the cap at the joins: no motion along that path can beat it (the g2
-path lies within 0.5 mm of it). Joint limits are lifted to the top of their ranges so that the Cartesian
-limits alone set the durations. All durations are *planned*; JTC executes the
-published points on the same time line.
+path lies within 0.5 mm of it). Joint limits are lifted to the top of their
+ranges so that the Cartesian limits alone set the durations. All durations are
+*planned*; JTC executes the published points on the same time line.
 
 Picks per minute: the 25-305-25 mm cycle repeated pick -> place -> pick with
 two 35 ms dwells, at the node's default limits and at fast limits with the
