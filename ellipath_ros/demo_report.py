@@ -293,6 +293,13 @@ class _Replay:
         return self.samples.source == self.accepted[number]
 
 
+# What the executed jerk means with each join (the planner bounds it only with g2).
+_JERK_NOTE = {
+    'g2': 'the planner keeps it within 1.10 times the limit',
+    'paper': 'unbounded at the joins: the paper path steps the acceleration there',
+}
+
+
 def evaluate_run(outcomes, trajectories, home_position, config, start_time, timed_out=False):
     """
     Judge a demo run from what was sent and received.
@@ -624,8 +631,8 @@ def format_report(report, config):
         f'executed peaks (finite differences at {1.0 / CONTROL_PERIOD:g} Hz): TCP '
         f'{_number(f["executed_peak_tcp_speed"], ".2f")} m/s (limit {limits.max_speed:g}), '
         f'{_number(f["executed_peak_tcp_accel"], ".1f")} m/s2 (limit {limits.max_accel:g}), '
-        f'{_number(f["executed_peak_tcp_jerk"], ".0f")} m/s3 (limit {limits.max_jerk:g}; the '
-        'planned acceleration steps at the line-to-arc joins count here); joints '
+        f'{_number(f["executed_peak_tcp_jerk"], ".0f")} m/s3 (limit {limits.max_jerk:g}, '
+        f'{_JERK_NOTE[config.join]}); joints '
         f'{_number(f["executed_peak_joint_velocity"], ".2f")} rad/s (limit '
         f'{joints.max_velocity:g}), {_number(f["executed_peak_joint_accel"], ".1f")} rad/s2 '
         f'(limit {joints.max_acceleration:g})',
