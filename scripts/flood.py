@@ -62,6 +62,7 @@ from geometry_msgs.msg import PoseStamped
 import numpy as np
 import rclpy
 from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from rclpy.signals import SignalHandlerOptions
@@ -155,8 +156,11 @@ class Recorder:
         self._spinner.start()
 
     def _spin(self):
-        while self.context.ok():
-            self.executor.spin_once(timeout_sec=0.05)
+        try:
+            while self.context.ok():
+                self.executor.spin_once(timeout_sec=0.05)
+        except ExternalShutdownException:
+            pass  # close() shut the context down while the executor waited
 
     def _on_diagnostics(self, message):
         now = time.monotonic()
