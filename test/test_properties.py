@@ -313,8 +313,8 @@ def test_build_settings_is_valid_or_names_a_changed_parameter(changes):
 
 # --- planning ------------------------------------------------------------------------------
 
-def _assert_safe(trajectory, start, place, config):
-    """Assert that ``trajectory`` is one JTC takes, within every limit, start to place."""
+def assert_executable(trajectory, config):
+    """Assert that JTC takes ``trajectory``, within every limit as executed; return the TCP."""
     validate_jtc(trajectory, expect_names=config.joint_names)
     check_joint_limits(trajectory, config.geometry, config.joint_limits,
                        samples_per_segment=QUINTIC_CHECK_SAMPLES)
@@ -327,6 +327,12 @@ def _assert_safe(trajectory, start, place, config):
     margin = (EXECUTED_WORKSPACE_TOLERANCE
               + config.limits.max_speed * WORKSPACE_CHECK_PERIOD / 2.0)
     assert config.workspace.contains(tcp, tolerance=margin).all()
+    return tcp
+
+
+def _assert_safe(trajectory, start, place, config):
+    """Assert that ``trajectory`` is one JTC takes, within every limit, start to place."""
+    tcp = assert_executable(trajectory, config)
     np.testing.assert_allclose(tcp[0], start, atol=END_TOLERANCE)
     np.testing.assert_allclose(tcp[-1], place, atol=END_TOLERANCE)
 

@@ -1,0 +1,456 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Flood ``ellipath_node`` with pick/place pairs from another process (issue 13, item 3).
+
+Starts the node (``python -m ellipath_ros.node``, the code of this checkout) as a
+subprocess, then sends ``--rate`` pairs per second for ``--seconds``: even pair ids as one
+``pick_place`` PoseArray, odd ones as ``pick_pose`` then ``place_pose`` with a stamp of their
+own (``stamp`` pairing). Every pair is identifiable: its id is written into the pick's and
+the place's x and y. About ``--invalid`` of them are invalid (a NaN place, or a wrong frame).
+Records every ``/diagnostics`` status and every trajectory, samples the node's VmRSS, lets
+the queue drain, sends one more valid pair and checks:
+
+* the node is alive and answers that pair (its trajectory arrives);
+* no trajectory joins a place with a pick it was not sent with (FK of its points);
+* every trajectory passes ``validate_jtc``;
+* the node's counters add up (received = released + rejected + dropped + queued +
+  releasing), and every pair number it counted has a status;
+* how many pairs DDS lost before the node read them (sent - received);
+* the queue length stayed within ``queue_depth``;
+* latency under load (``plan_time``, ``receive_to_plan_latency``,
+  ``receive_to_publish_latency`` of the statuses; *planned*/*released*, not executed).
+
+Prints the report as JSON; exit status 1 if a check failed. DDS stays on this host; give
+the run a domain of its own::
+
+    ROS_DOMAIN_ID=121 .venv/bin/python scripts/flood.py --rate 1000 --seconds 60
+"""
+
+import argparse
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from ellipath_ros.conversions import joint_trajectory_data
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.joint_trajectory import validate_jtc
+from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.planner import PlannerConfig
+from geometry_msgs.msg import Pose
+from geometry_msgs.msg import PoseArray
+from geometry_msgs.msg import PoseStamped
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
+from trajectory_msgs.msg import JointTrajectory
+
+FRAME = 'base_link'
+# Pair ids are written into the positions: x = X0 + STEP * (id % ROW), y = Y0 + STEP * (id //
+# ROW) for the pick; the place is the pick mirrored in x and shifted by PLACE_SHIFT in y. The
+# grid stays inside the default safe workspace for up to ROW * ROWS pairs.
+X0, Y0, STEP, ROW, ROWS = -0.15, -0.12, 1e-4, 3000, 2000
+PICK_Z, PLACE_Z, PLACE_SHIFT = -0.85, -0.8, 0.05
+# A trajectory point is "the pick" if FK puts it this close to it [m]; pair ids are STEP
+# apart, so a pick of another pair is at least 100 µm away.
+PICK_TOLERANCE = 1e-6
+# Queue depth of this process's publishers and subscriptions: nothing is lost on our side.
+DEPTH = 100_000
+# How long the node may take to start, to drain its queue, and to answer the last pair [s].
+START_TIMEOUT = 60.0
+DRAIN_TIMEOUT = 120.0
+ANSWER_TIMEOUT = 10.0
+PAIR_IN_MESSAGE = re.compile(r'^pair (\d+)\b')
+
+
+def pick_of(pair_id):
+    """Return the pick position of pair ``pair_id``."""
+    return np.array([X0 + STEP * (pair_id % ROW), Y0 + STEP * (pair_id // ROW), PICK_Z])
+
+
+def place_of(pair_id):
+    """Return the place position of pair ``pair_id``."""
+    pick = pick_of(pair_id)
+    return np.array([-pick[0], pick[1] + PLACE_SHIFT, PLACE_Z])
+
+
+def pair_of_place(place):
+    """Return the id of the pair whose place is ``place`` (nearest on the grid)."""
+    column = round((-place[0] - X0) / STEP)
+    row = round((place[1] - PLACE_SHIFT - Y0) / STEP)
+    return row * ROW + column
+
+
+def resident_kib(pid):
+    """Return the resident set size (VmRSS) of process ``pid`` [KiB], or None if it is gone."""
+    try:
+        with open(f'/proc/{pid}/status') as status:
+            for line in status:
+                if line.startswith('VmRSS:'):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def percentile(values, share):
+    """Return the ``share`` quantile of ``values`` (nearest rank), or None if empty."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, max(0, math.ceil(share * len(ordered)) - 1))]
+
+
+def _pose(position):
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(value) for value in position)
+    pose.orientation.w = 1.0
+    return pose
+
+
+class Recorder:
+    """This process's ROS side: the three publishers and a record of what the node sends."""
+
+    def __init__(self, domain_id):
+        self.context = Context()
+        # No rclpy signal handlers: Ctrl-C raises KeyboardInterrupt, and run() stops the node.
+        rclpy.init(context=self.context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('ellipath_flood', context=self.context)
+        qos = QoSProfile(depth=DEPTH)  # reliable, volatile: as the node's subscriptions
+        self.pick_place = self.node.create_publisher(PoseArray, 'pick_place', qos)
+        self.pick_pose = self.node.create_publisher(PoseStamped, 'pick_pose', qos)
+        self.place_pose = self.node.create_publisher(PoseStamped, 'place_pose', qos)
+        self.statuses = []  # (arrival time.monotonic(), DiagnosticStatus)
+        self.trajectories = []  # (arrival time.monotonic(), JointTrajectory)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
+                                      qos)
+        self.node.create_subscription(JointTrajectory, 'joint_trajectory',
+                                      self._on_trajectory, qos)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._spinner = threading.Thread(target=self._spin, daemon=True)
+        self._spinner.start()
+
+    def _spin(self):
+        try:
+            while self.context.ok():
+                self.executor.spin_once(timeout_sec=0.05)
+        except ExternalShutdownException:
+            pass  # close() shut the context down while the executor waited
+
+    def _on_diagnostics(self, message):
+        now = time.monotonic()
+        self.statuses.extend((now, status) for status in message.status)
+
+    def _on_trajectory(self, message):
+        self.trajectories.append((time.monotonic(), message))
+
+    def connected(self):
+        """Return True once the node's subscriptions and publishers are matched."""
+        return (all(publisher.get_subscription_count() > 0 for publisher in
+                    (self.pick_place, self.pick_pose, self.place_pose))
+                and self.node.count_publishers('/diagnostics') > 0
+                and self.node.count_publishers('joint_trajectory') > 0)
+
+    def send(self, pair_id, stamp_sec, invalid=None):
+        """Send pair ``pair_id``; ``invalid`` is None, 'nan' or 'frame'."""
+        pick, place = pick_of(pair_id), place_of(pair_id)
+        if invalid == 'nan':
+            place[2] = math.nan
+        frame = 'not_' + FRAME if invalid == 'frame' else FRAME
+        if pair_id % 2 == 0:
+            message = PoseArray()
+            message.header.frame_id = frame
+            message.header.stamp.sec = stamp_sec
+            message.poses = [_pose(pick), _pose(place)]
+            self.pick_place.publish(message)
+            return 'pick_place'
+        for publisher, position in ((self.pick_pose, pick), (self.place_pose, place)):
+            message = PoseStamped()
+            message.header.frame_id = frame
+            message.header.stamp.sec = stamp_sec  # unique per pair: 'stamp' pairing
+            message.pose = _pose(position)
+            publisher.publish(message)
+        return 'pick_pose+place_pose'
+
+    def close(self):
+        """Shut this process's ROS side down."""
+        rclpy.try_shutdown(context=self.context)
+        self._spinner.join(2.0)
+        self.node.destroy_node()
+
+
+def start_node(log_path, env):
+    """Start ellipath_node (this checkout's code); return the Popen once it is ready."""
+    log = open(log_path, 'w')
+    process = subprocess.Popen([sys.executable, '-m', 'ellipath_ros.node'], env=env,
+                               stdout=log, stderr=subprocess.STDOUT)
+    log.close()
+    deadline = time.monotonic() + START_TIMEOUT
+    while time.monotonic() < deadline:
+        with open(log_path) as text:
+            if 'ready' in text.read():
+                return process
+        if process.poll() is not None:
+            break
+        time.sleep(0.1)
+    process.kill()
+    raise RuntimeError(f'ellipath_node did not start, see {log_path}')
+
+
+def _values(status):
+    return {item.key: item.value for item in status.values}
+
+
+def _status_pair(status, values):
+    """Return the pair number a status is about, or None (pick_pose statuses, clear_queue)."""
+    if 'pair' in values:
+        return int(values['pair'])
+    match = PAIR_IN_MESSAGE.match(status.message)
+    return int(match.group(1)) if match else None
+
+
+def check_trajectories(trajectories, sent_ids, geometry):
+    """Return (pair ids released, mis-pairings, invalid trajectories) of the trajectories."""
+    released, mispaired, invalid = [], [], []
+    for _, message in trajectories:
+        try:
+            data = joint_trajectory_data(message)
+            validate_jtc(data)
+        except EllipathError as error:
+            invalid.append(str(error))
+            continue
+        tcp = forward_kinematics(np.asarray(data.positions), geometry)
+        pair_id = pair_of_place(tcp[-1])
+        if (pair_id not in sent_ids
+                or np.linalg.norm(tcp[-1] - place_of(pair_id)) > PICK_TOLERANCE
+                or np.min(np.linalg.norm(tcp - pick_of(pair_id), axis=1)) > PICK_TOLERANCE):
+            mispaired.append({'place': tcp[-1].tolist(), 'nearest_pair': pair_id})
+            continue
+        released.append(pair_id)
+    return released, mispaired, invalid
+
+
+def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, out=None,
+        drain_timeout=DRAIN_TIMEOUT):
+    """
+    Flood a fresh node and return the report (a dict); see the module docstring.
+
+    ``out`` (a file) receives progress lines, e.g. RSS samples; None for silence.
+    """
+    domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0'))
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1')
+    log_dir = log_dir or tempfile.mkdtemp(prefix='ellipath_flood_')
+    os.makedirs(log_dir, exist_ok=True)
+    log_path = os.path.join(log_dir, 'node.log')
+    rng = np.random.default_rng(seed)
+    recorder = Recorder(domain_id)
+    try:
+        process = start_node(log_path, env)
+    except RuntimeError:
+        recorder.close()
+        raise
+    try:
+        deadline = time.monotonic() + START_TIMEOUT
+        while not recorder.connected() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.5)  # discovery is matched both ways by now, give DDS a moment more
+        rss = [(0.0, resident_kib(process.pid))]
+        total = int(round(rate * seconds))
+        sent, invalid = {}, {}
+        started = time.monotonic()
+        next_sample = started + rss_every
+        for pair_id in range(total):
+            due = started + pair_id / rate
+            now = time.monotonic()
+            if due > now:
+                time.sleep(due - now)
+            kind = None
+            if rng.uniform() < invalid_share:
+                kind = 'nan' if rng.uniform() < 0.5 else 'frame'
+                invalid[pair_id] = kind
+            sent[pair_id] = recorder.send(pair_id, 1_000_000 + pair_id, kind)
+            if now >= next_sample:
+                rss.append((now - started, resident_kib(process.pid)))
+                next_sample += rss_every
+                if out is not None:
+                    print(json.dumps({'t': round(now - started, 1), 'sent': pair_id + 1,
+                                      'rss_kib': rss[-1][1]}), file=out, flush=True)
+        send_time = time.monotonic() - started
+        # Drain: wait until the node has counted every pair and its queue is empty.
+        drained = False
+        deadline = time.monotonic() + drain_timeout
+        while time.monotonic() < deadline and process.poll() is None:
+            latest = _latest_counts(recorder.statuses)
+            if latest and latest.get('queue_length') == '0' and time.monotonic() > (
+                    recorder.statuses[-1][0] + 2.0):
+                drained = True
+                break
+            time.sleep(0.2)
+        rss.append((time.monotonic() - started, resident_kib(process.pid)))
+        # The last pair: does the node still answer, and how fast?
+        probe_id = total
+        trajectories_before = len(recorder.trajectories)
+        probe_sent = time.monotonic()
+        sent[probe_id] = recorder.send(probe_id, 1_000_000 + probe_id)
+        answer = None
+        while time.monotonic() < probe_sent + ANSWER_TIMEOUT and answer is None:
+            for arrival, message in recorder.trajectories[trajectories_before:]:
+                tcp = forward_kinematics(np.asarray(message.points[-1].positions),
+                                         PlannerConfig().geometry)
+                if pair_of_place(tcp) == probe_id:
+                    answer = arrival - probe_sent
+            time.sleep(0.05)
+        time.sleep(1.0)  # the probe's 'released' status follows its trajectory
+        alive = process.poll() is None
+        rss.append((time.monotonic() - started, resident_kib(process.pid)))
+    finally:
+        process.send_signal(2)
+        try:
+            exit_code = process.wait(15.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            exit_code = 'killed'
+        recorder.close()
+    return _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, answer,
+                   drained, rate, seconds, log_path)
+
+
+def _latest_counts(statuses):
+    """Return the values of the status with the highest pairs_received so far, or None."""
+    best = None
+    for _, status in statuses[-200:]:
+        values = _values(status)
+        if 'pairs_received' in values and (
+                best is None or int(values['pairs_received']) >= int(best['pairs_received'])):
+            best = values
+    return best
+
+
+def _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, answer,
+            drained, rate, seconds, log_path):
+    geometry = PlannerConfig().geometry
+    released, mispaired, invalid_trajectories = check_trajectories(
+        recorder.trajectories, set(sent) - set(invalid), geometry)
+    kinds, pairs_with_status, queue_lengths = {}, set(), []
+    plan_times, plan_latency, publish_latency = [], [], []
+    counters = None
+    for _, status in recorder.statuses:
+        values = _values(status)
+        kind = values.get('kind', status.message if status.message in (
+            'planned', 'released') else 'other')
+        kinds[kind] = kinds.get(kind, 0) + 1
+        pair = _status_pair(status, values)
+        if pair is not None:
+            pairs_with_status.add(pair)
+        if 'queue_length' in values:
+            queue_lengths.append(int(values['queue_length']))
+        if 'pairs_received' in values and (counters is None or int(
+                values['pairs_received']) >= int(counters['pairs_received'])):
+            counters = values
+        if status.message == 'planned':
+            plan_times.append(float(values['plan_time']))
+            plan_latency.append(float(values['receive_to_plan_latency']))
+        elif status.message == 'released':
+            publish_latency.append(float(values['receive_to_publish_latency']))
+    counts = {name[len('pairs_'):]: int(value) for name, value in (counters or {}).items()
+              if name.startswith('pairs_')}
+    received = counts.get('received', 0)
+    accounted = sum(counts.get(name, 0) for name in
+                    ('released', 'rejected', 'dropped', 'queued', 'releasing'))
+    without_status = sorted(set(range(1, received + 1)) - pairs_with_status)
+    rss_values = [value for _, value in rss if value is not None]
+
+    def ms(values):
+        return {'p50': _ms(percentile(values, 0.5)), 'p99': _ms(percentile(values, 0.99)),
+                'max': _ms(max(values) if values else None), 'n': len(values)}
+
+    report = {
+        'rate_requested': rate, 'seconds_requested': seconds,
+        'pairs_sent': len(sent), 'flood_pairs': total, 'invalid_sent': len(invalid),
+        'send_time_s': round(send_time, 2), 'rate_achieved': round(total / send_time, 1),
+        'node_counts': counts,
+        'lost_before_node': len(sent) - received,
+        'accounting_adds_up': received == accounted,
+        'pairs_without_status': len(without_status),
+        'pairs_without_status_first': without_status[:10],
+        'status_kinds': kinds, 'statuses_recorded': len(recorder.statuses),
+        'trajectories': len(recorder.trajectories), 'trajectory_pairs': len(released),
+        'duplicate_trajectories': len(released) - len(set(released)),
+        'mispaired': len(mispaired), 'mispaired_first': mispaired[:5],
+        'invalid_trajectories': len(invalid_trajectories),
+        'max_queue_length': max(queue_lengths) if queue_lengths else None,
+        'drained': drained, 'alive_after': alive, 'exit_code': exit_code,
+        'answer_after_flood_s': None if answer is None else round(answer, 3),
+        'rss_kib': {'start': rss_values[0] if rss_values else None,
+                    'end': rss_values[-1] if rss_values else None,
+                    'max': max(rss_values) if rss_values else None,
+                    'samples': len(rss_values),
+                    'per_minute': _per_minute(rss)},
+        'plan_time_ms': ms(plan_times),
+        'receive_to_plan_latency_ms': ms(plan_latency),
+        'receive_to_publish_latency_ms': ms(publish_latency),
+        'node_log': log_path,
+    }
+    report['ok'] = bool(alive and answer is not None and not mispaired
+                        and not invalid_trajectories and report['accounting_adds_up']
+                        and not without_status and report['lost_before_node'] == 0)
+    return report
+
+
+def _per_minute(rss):
+    """Return the first RSS sample of each minute of the run [KiB]."""
+    minutes = {}
+    for elapsed, value in rss:
+        if value is not None:
+            minutes.setdefault(int(elapsed // 60.0), value)
+    return [minutes[minute] for minute in sorted(minutes)]
+
+
+def _ms(seconds):
+    return None if seconds is None else round(1e3 * seconds, 1)
+
+
+def main():
+    """Run the flood from the command line; print the report as JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    parser.add_argument('--rate', type=float, default=1000.0, help='pairs per second')
+    parser.add_argument('--seconds', type=float, default=60.0)
+    parser.add_argument('--invalid', type=float, default=0.02,
+                        help='share of invalid pairs (NaN place or wrong frame)')
+    parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--log-dir', help="where the node's log goes (default: a temp dir)")
+    options = parser.parse_args()
+    report = run(options.rate, options.seconds, options.seed, invalid_share=options.invalid,
+                 log_dir=options.log_dir, out=sys.stderr)
+    print(json.dumps(report, indent=1))
+    return 0 if report['ok'] else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,120 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Long runs: resident memory over many plans and over time (issue 13, item 4).
+
+``plans``: ``plan_cycle`` in this process on seeded random reachable pairs, cycled (each
+plan starts where the one before it ended); the resident set size (VmRSS) is sampled every
+``--every`` plans and the growth after the first sample is reported.
+
+``node``: ``ellipath_node`` as a subprocess under continuous valid pairs from this process
+for ``--minutes`` (the flood of ``scripts/flood.py`` at a low rate, so that the queue stays
+busy without being flooded); the node's VmRSS is sampled every second.
+
+    .venv/bin/python scripts/soak.py plans --plans 100000
+    ROS_DOMAIN_ID=61 .venv/bin/python scripts/soak.py node --minutes 30
+"""
+
+import argparse
+import json
+import os
+import sys
+import time
+
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.core.planner import PlannerConfig
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import flood  # noqa: E402, I100 (a sibling script: scripts/ is not a package)
+
+HOME = np.array([0.0, 0.0, -0.8])
+# Distinct pairs cycled through: enough to exercise many geometries, few enough that the
+# inputs themselves take no memory worth counting.
+DISTINCT_PAIRS = 500
+
+
+def random_point(rng):
+    """Return a point of the default safe workspace, low enough for the arc to stay in it."""
+    radius = 0.3 * np.sqrt(rng.uniform())
+    angle = rng.uniform(0.0, 2.0 * np.pi)
+    return np.array([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-0.95, -0.7)])
+
+
+def soak_plans(plans, every, seed):
+    """Plan ``plans`` cycles, print a JSON line per RSS sample, return the summary dict."""
+    rng = np.random.default_rng(seed)
+    config = PlannerConfig()
+    pairs = [(random_point(rng), random_point(rng)) for _ in range(DISTINCT_PAIRS)]
+    start = HOME
+    samples = []
+    planned = rejected = 0
+    started = time.monotonic()
+    for index in range(plans):
+        pick, place = pairs[index % DISTINCT_PAIRS]
+        try:
+            start = plan_cycle(start, pick, place, config).end_position
+            planned += 1
+        except EllipathError:
+            rejected += 1  # a pair this start cannot reach safely: the next one starts here
+        if (index + 1) % every == 0:
+            sample = {'plans': index + 1, 'planned': planned, 'rejected': rejected,
+                      'rss_kib': flood.resident_kib(os.getpid()),
+                      'elapsed_s': round(time.monotonic() - started)}
+            samples.append(sample)
+            print(json.dumps(sample), flush=True)
+    return summary(samples, 'plans')
+
+
+def summary(samples, count_key):
+    """Return the RSS figures of ``samples`` (growth counted from the first sample)."""
+    if not samples:
+        return {'samples': 0}
+    rss = [sample['rss_kib'] for sample in samples]
+    return {'samples': len(samples), count_key: samples[-1][count_key],
+            'rss_first_kib': rss[0], 'rss_last_kib': rss[-1], 'rss_max_kib': max(rss),
+            'growth_kib': rss[-1] - rss[0], 'growth_max_kib': max(rss) - rss[0]}
+
+
+def soak_node(minutes, rate, seed):
+    """Run the node under ``rate`` pairs/s for ``minutes``; return the flood's report."""
+    return flood.run(rate=rate, seconds=60.0 * minutes, seed=seed, rss_every=10.0,
+                     invalid_share=0.0, out=sys.stderr)
+
+
+def main():
+    """Run the soak chosen on the command line and print its summary as JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    commands = parser.add_subparsers(dest='command', required=True)
+    plans = commands.add_parser('plans', help='plan_cycle in this process')
+    plans.add_argument('--plans', type=int, default=100_000)
+    plans.add_argument('--every', type=int, default=1000, help='plans between RSS samples')
+    plans.add_argument('--seed', type=int, default=17)
+    node = commands.add_parser('node', help='ellipath_node under continuous pairs')
+    node.add_argument('--minutes', type=float, default=30.0)
+    node.add_argument('--rate', type=float, default=4.0, help='pairs per second')
+    node.add_argument('--seed', type=int, default=17)
+    options = parser.parse_args()
+    if options.command == 'plans':
+        result = soak_plans(options.plans, options.every, options.seed)
+    else:
+        result = soak_node(options.minutes, options.rate, options.seed)
+    print(json.dumps({'summary': result}), flush=True)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,233 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Property-based tests of ellipath_node's inputs (hypothesis, profile as test_properties.py).
+
+One EllipathNode runs in this process with its planning and release threads. Generated
+messages go straight to its intake callbacks (what the executor calls for each message):
+poses with NaN, +-inf, huge, tiny and subnormal coordinates, zero, NaN and huge quaternions,
+wrong or empty frames, out-of-order, duplicate and far-future stamps, places without a pick,
+PoseArrays of 0 to 4 poses; between them, valid and invalid parameter changes while the
+threads plan and release. What the node publishes is recorded in place of its trajectory
+and /diagnostics publishers. Properties: the node keeps serving, each pair message is counted
+once and gets a status, every rejection has a reason, a refused parameter change leaves the
+configuration as it was, and every trajectory released is one JTC takes, within the joint
+limits on its interpolation and within the safe workspace as executed.
+"""
+
+import math
+import os
+import re
+import time
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from ellipath_ros.conversions import joint_trajectory_data
+from ellipath_ros.node import EllipathNode
+from ellipath_ros.parameters import build_settings
+from ellipath_ros.parameters import parameter_defaults
+from geometry_msgs.msg import Pose
+from geometry_msgs.msg import PoseArray
+from geometry_msgs.msg import PoseStamped
+from hypothesis import given
+from hypothesis import settings
+from hypothesis import strategies as st
+import pytest
+from rclpy.parameter import Parameter
+from std_srvs.srv import Trigger
+from test_properties import assert_executable
+from test_properties import hostile_floats
+from test_properties import inside
+from test_properties import SCALE
+
+ROS_DOMAIN_OFFSET = 6  # see conftest.py
+NAMESPACE = f'/ellipath_properties_{os.getpid()}'
+EXAMPLES = 1200 * SCALE  # each example sends 1 to 6 messages or parameter changes
+DRAIN_TIMEOUT = 20.0  # s, for the queue to empty at the end before it is cleared
+DEFAULTS = parameter_defaults()
+# The loosest configuration in force: valid parameter changes below only tighten it.
+CONFIG = build_settings(DEFAULTS).planner
+PAIR_IN_MESSAGE = re.compile(r'\bpair (\d+)\b')
+
+
+class Recorder:
+    """Stands in for a publisher: keeps every message published."""
+
+    def __init__(self):
+        self.messages = []
+
+    def publish(self, message):
+        self.messages.append(message)
+
+
+@pytest.fixture(scope='module')
+def node(ros_context):
+    """Yield an EllipathNode whose trajectories and statuses are recorded."""
+    node = EllipathNode(context=ros_context, namespace=NAMESPACE)
+    node._trajectory_publisher = Recorder()
+    node._diagnostics_publisher = Recorder()
+    yield node
+    node.destroy_node()
+
+
+def statuses(node):
+    """Return every status the node published so far."""
+    return [status for array in node._diagnostics_publisher.messages for status in array.status]
+
+
+def values_of(status):
+    """Return the key/values of a DiagnosticStatus as a dict."""
+    return {item.key: item.value for item in status.values}
+
+
+# --- generated inputs ------------------------------------------------------------------------
+
+coordinate_triples = st.one_of(
+    inside.map(tuple), inside.map(tuple), inside.map(tuple),
+    st.tuples(hostile_floats, hostile_floats, hostile_floats),
+    st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), hostile_floats))
+quaternions = st.one_of(
+    st.just((0.0, 0.0, 0.0, 1.0)),
+    st.sampled_from([(0.0, 0.0, 0.0, 0.0), (math.nan,) * 4, (math.inf, 0.0, 0.0, 0.0),
+                     (1e300, 1e300, 0.0, 0.0), (5e-324, 0.0, 0.0, 0.0)]),
+    st.tuples(hostile_floats, hostile_floats, hostile_floats, hostile_floats))
+frames = st.one_of(st.just('base_link'), st.just('base_link'), st.just('base_link'),
+                   st.sampled_from(['', 'world', 'base_link ', '/base_link', 'BASE_LINK']),
+                   st.text(max_size=8))
+# Stamps repeat (small range), go back, and reach the far future (int32 seconds).
+stamps = st.tuples(st.one_of(st.integers(0, 5), st.integers(-2**31, 2**31 - 1)),
+                   st.one_of(st.just(0), st.integers(0, 999_999_999)))
+
+
+def _pose(position, orientation):
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = position
+    (pose.orientation.x, pose.orientation.y, pose.orientation.z,
+     pose.orientation.w) = orientation
+    return pose
+
+
+@st.composite
+def pose_messages(draw):
+    """Draw (topic, message) for pick_pose, place_pose or pick_place."""
+    topic = draw(st.sampled_from(['pick_pose', 'place_pose', 'pick_place']))
+    frame, (sec, nanosec) = draw(frames), draw(stamps)
+    if topic == 'pick_place':
+        message = PoseArray()
+        count = draw(st.sampled_from([2, 2, 2, 0, 1, 3]))
+        message.poses = [_pose(draw(coordinate_triples), draw(quaternions))
+                         for _ in range(count)]
+    else:
+        message = PoseStamped()
+        message.pose = _pose(draw(coordinate_triples), draw(quaternions))
+    message.header.frame_id = frame
+    message.header.stamp.sec, message.header.stamp.nanosec = sec, nanosec
+    return topic, message
+
+
+# Valid changes only tighten the default limits, so CONFIG bounds every plan.
+TIGHTER = {'max_speed': (1.0, 4.0), 'max_accel': (10.0, 50.0), 'max_jerk': (1000.0, 5000.0),
+           'max_joint_velocity': (3.0, 10.0), 'max_joint_accel': (50.0, 200.0),
+           'pick_dwell': (0.0, 0.1), 'place_dwell': (0.0, 0.1)}
+# Values each of these parameters must refuse.
+INVALID_VALUES = st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 0.0, 1e300, 'fast',
+                                  True, [1.0]])
+INVALID_NAMES = ['max_speed', 'max_accel', 'max_jerk', 'max_joint_velocity',
+                 'max_joint_accel', 'workspace_radius', 'knot_tolerance']
+parameter_changes = st.one_of(
+    st.sampled_from(sorted(TIGHTER)).flatmap(
+        lambda name: st.tuples(st.just(name), st.floats(*TIGHTER[name]), st.just(True))),
+    st.tuples(st.sampled_from(INVALID_NAMES), INVALID_VALUES, st.just(False)),
+    st.tuples(st.just('pairing'), st.sampled_from(['stamp', 'sequence', 'random', '']),
+              st.just(None)))
+steps = st.lists(st.one_of(pose_messages(), pose_messages(), pose_messages(),
+                           parameter_changes.map(lambda change: ('parameter', change))),
+                 min_size=1, max_size=6)
+
+
+# --- properties ------------------------------------------------------------------------------
+
+def _change_parameter(node, change):
+    """Set one parameter; a refused change must give a reason and change nothing."""
+    name, value, valid = change
+    before = node.get_parameter(name).value
+    result = node.set_parameters([Parameter(name, value=value)])[0]
+    if valid is True:
+        assert result.successful, (name, value, result.reason)
+    elif valid is False:
+        assert not result.successful, (name, value)
+    if result.successful:
+        assert node.get_parameter(name).value == value
+    else:
+        assert result.reason, (name, value)
+        assert node.get_parameter(name).value == before
+
+
+@settings(max_examples=EXAMPLES)
+@given(sequence=steps)
+def test_any_input_is_counted_answered_and_leaves_the_node_serving(node, sequence):
+    received = node.sequencer.counts()['received']
+    published = len(node._diagnostics_publisher.messages)
+    pairs = 0
+    for topic, item in sequence:
+        if topic == 'parameter':
+            _change_parameter(node, item)
+            continue
+        callback = {'pick_pose': node._on_pick, 'place_pose': node._on_place,
+                    'pick_place': node._on_pick_place}[topic]
+        callback(item)
+        pairs += topic != 'pick_pose'
+    counts = node.sequencer.counts()
+    # Each place_pose and pick_place message is one pair, counted once.
+    assert counts['received'] == received + pairs
+    assert counts['received'] == sum(counts[name] for name in (
+        'released', 'rejected', 'dropped', 'queued', 'releasing'))
+    assert all(worker.is_alive() for worker in node._workers)
+    for array in node._diagnostics_publisher.messages[published:]:
+        for status in array.status:
+            if status.level != DiagnosticStatus.OK:
+                kind = values_of(status).get('kind')
+                assert kind not in (None, '', 'internal'), status
+                # A rejection says what was expected; 'pick_replaced' only warns of a pick
+                # that will never be paired (its place, if any, is rejected as unpaired).
+                if kind != 'pick_replaced':
+                    assert ': expected ' in status.message, status.message
+
+
+def _pairs_named(status):
+    """Return the pair numbers a status is about."""
+    values = values_of(status)
+    named = {int(number) for number in values.get('dropped_pairs', '').split()}
+    if 'pair' in values:
+        named.add(int(values['pair']))
+    named.update(int(number) for number in PAIR_IN_MESSAGE.findall(status.message))
+    return named
+
+
+def test_every_pair_has_a_status_and_every_trajectory_is_safe(node):
+    """After the generated inputs: drain (or clear) the queue, then check what came out."""
+    deadline = time.monotonic() + DRAIN_TIMEOUT
+    while len(node.sequencer) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    node._on_clear_queue(Trigger.Request(), Trigger.Response())
+    time.sleep(0.5)  # a release in progress at the clear publishes its status
+    counts = node.sequencer.counts()
+    assert counts['received'] > 1000
+    assert counts['released'] > 0
+    named = set()
+    for status in statuses(node):
+        named |= _pairs_named(status)
+    assert set(range(1, counts['received'] + 1)) <= named
+    for message in node._trajectory_publisher.messages:
+        assert_executable(joint_trajectory_data(message), CONFIG)
