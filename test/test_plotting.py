@@ -16,7 +16,6 @@
 import os
 import struct
 import sys
-import time
 
 from ellipath_ros.core.errors import DegenerateGeometryError
 from ellipath_ros.core.planner import PlannerConfig
@@ -48,9 +47,7 @@ def png_size(path):
 
 def test_paper_example_writes_every_figure(tmp_path):
     out_dir = tmp_path / 'figures'
-    started = time.perf_counter()
     written = write_figures(PAPER_PICK, PAPER_PLACE, out_dir)
-    assert time.perf_counter() - started < 20.0
     assert {os.path.basename(path) for path in written} == EXPECTED
     assert len(written) == len(EXPECTED)
     for path in written:
