@@ -19,9 +19,10 @@ import functools
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import minimal_knots, quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import (
     EXECUTED_JERK_SHARE, executed_peaks, plan_transfer, PlannerConfig)
-from ellipath_ros.core.timing import _within_limits, CartesianLimits, time_motion
+from ellipath_ros.core.timing import _within_limits, time_motion
 import numpy as np
 
 PICK = np.array([0.0, 0.0, -0.8])

@@ -19,7 +19,8 @@ import math
 
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy, BlendedArc, plan_path
-from ellipath_ros.core.timing import CartesianLimits, time_motion
+from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.timing import time_motion
 import numpy as np
 import pytest
 

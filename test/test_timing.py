@@ -17,10 +17,12 @@
 import functools
 import math
 
+from ellipath_ros.core.curvature_profile import curvature_nodes
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy, plan_path
-from ellipath_ros.core.timing import (
-    CartesianLimits, curvature_nodes, PROFILES, time_motion, TimedMotion)
+from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.motion import PROFILES, TimedMotion
+from ellipath_ros.core.timing import time_motion
 import numpy as np
 import pytest
 

@@ -41,8 +41,8 @@ import numpy as np
 
 from ..core.geometry import ArcPolicy, plan_path
 from ..core.kinematics import JointLimits
+from ..core.limits import CartesianLimits
 from ..core.planner import plan_cycle, plan_transfer, PlannerConfig
-from ..core.timing import CartesianLimits
 
 # (name, pick, place, arc policy) of the benchmark's cycles [m].
 CYCLES = (

@@ -28,8 +28,10 @@ from .errors import (
 from .geometry import ARC_POLICIES, ArcPolicy, EllipticArc, PickPlacePath, plan_path
 from .joint_trajectory import JointTrajectoryData, TrajectoryRejectedError, validate_jtc
 from .kinematics import DeltaGeometry, forward_kinematics, inverse_kinematics, JointLimits
+from .limits import CartesianLimits
+from .motion import PROFILES, TimedMotion
 from .planner import CyclePlan, LegPlan, plan_cycle, plan_transfer, PlannerConfig
-from .timing import CartesianLimits, PROFILES, time_motion, TimedMotion
+from .timing import time_motion
 
 __all__ = [
     # Planning a request: the entry points and their configuration and results.

@@ -38,7 +38,9 @@ from .joint_trajectory import (
 from .kinematics import (
     DeltaGeometry, forward_kinematics, inverse_kinematics, joint_accelerations,
     joint_velocities, JointLimits)
-from .timing import CartesianLimits, PROFILES, time_motion
+from .limits import CartesianLimits
+from .motion import PROFILES
+from .timing import time_motion
 from .workspace import SafeWorkspace
 
 OUTPUT_MODES = ('knots', 'samples')

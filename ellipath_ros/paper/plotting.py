@@ -28,12 +28,12 @@ from dataclasses import replace
 import math
 import os
 
+from ellipath_ros.core.curvature_profile import curvature_nodes
 from ellipath_ros.core.errors import DegenerateGeometryError
 from ellipath_ros.core.geometry import (
     arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi)
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
-from ellipath_ros.core.timing import curvature_nodes
 from ellipath_ros.paper.comparison import figure8_paths
 from ellipath_ros.paper.equations import paper_axes
 import numpy as np

@@ -1,0 +1,87 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Limits of the TCP motion, the share of them the timing constructions aim at, the speed cap.
+
+The constructions aim at ``_*_MARGIN`` of the limits; the rest absorbs what
+happens between the steps they are built from (the final check in
+:func:`~ellipath_ros.core.timing.time_motion` samples the continuous motion).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError, require_range
+
+# The construction aims at these fractions of the limits; the rest absorbs what happens
+# between the steps it is built from (the final check samples the continuous motion).
+_SPEED_MARGIN = 0.999
+_ACCEL_MARGIN = 0.995
+_JERK_MARGIN = 0.995
+# Samples of a stretch for constant limits that hold all along it (plus the tightest point).
+_LIMIT_SAMPLES = 129
+
+
+@dataclass(frozen=True)
+class CartesianLimits:
+    """
+    Limits of the TCP motion.
+
+    Attributes
+    ----------
+    max_speed : float
+        Largest TCP speed [m/s], > 0.
+    max_accel : float
+        Largest norm of the TCP acceleration vector [m/s**2], > 0; the normal
+        part v**2 kappa counts.
+    max_jerk : float
+        Largest norm of the TCP jerk vector [m/s**3], > 0.
+    max_accel_jump : float
+        Largest step of the acceleration vector at T1 and T2 [m/s**2], >= 0.
+        The curvature jumps from 0 (line) to 1/rho_T (arc end) there, so the
+        normal acceleration steps by v**2 / rho_T; a step in commanded
+        acceleration is a step in motor torque, which excites the arms. The
+        default, 25 m/s**2 (half of ``max_accel``), keeps that step moderate
+        and costs little: it caps the speed at T1/T2 at sqrt(25 rho_T)
+        (0.46 m/s on the paper's example) where the curvature limit alone
+        allows about 0.65 m/s. 0 makes the motion stop at T1 and T2.
+
+    """
+
+    max_speed: float = 4.0
+    max_accel: float = 50.0
+    max_jerk: float = 5000.0
+    max_accel_jump: float = 25.0
+
+    def __post_init__(self):
+        # Practical ranges: beyond them a motion lasts hours or the arithmetic overflows.
+        for name, low, high, unit in (('max_speed', 0.01, 100.0, 'm/s'),
+                                      ('max_accel', 0.1, 1e4, 'm/s^2'),
+                                      ('max_jerk', 1.0, 1e7, 'm/s^3')):
+            object.__setattr__(self, name, require_range(
+                name, getattr(self, name), low, high, unit=unit))
+        object.__setattr__(self, 'max_accel_jump', require_range(
+            'max_accel_jump', self.max_accel_jump, 0.0, 1e4, unit='m/s^2'))
+
+
+def _cap_values(speed_cap, s):
+    """Call the speed cap on path lengths ``s`` (N,) and check the answer."""
+    values = np.asarray(speed_cap(s), dtype=float)
+    if values.shape != s.shape or not np.all(values > 0.0) or not np.all(np.isfinite(values)):
+        raise InvalidInputError(
+            f'speed_cap: expected positive finite speeds of shape {s.shape} [m/s], got '
+            f'shape {values.shape}, minimum {np.min(values) if values.size else None}')
+    return values

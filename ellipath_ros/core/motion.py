@@ -1,0 +1,350 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The timed motion along a path: laws s(t) and :class:`TimedMotion`.
+
+Arrays: times t have shape (N,) [s]; path states (s, s', s'', s''') have
+shape (N,) [m, m/s, m/s**2, m/s**3]; Cartesian arrays have shape (N, 3), base
+frame, SI units.
+"""
+
+from dataclasses import dataclass, field, replace
+import math
+
+import numpy as np
+
+from .errors import InvalidInputError, require_range
+from .geometry import PickPlacePath
+
+PROFILES = ('curvature', 'time_optimal')
+# Default sample period of TimedMotion.metrics [s], and its most samples.
+_CHECK_PERIOD = 1e-4
+_METRICS_SAMPLES = 100000
+
+
+# -- laws: s(t) and its derivatives -----------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class _JerkPieces:
+    """s(t) with piecewise-constant jerk: piece i starts at ``times[i]`` in state (s, v, a)."""
+
+    times: np.ndarray  # (K + 1,) [s], from 0
+    s0: np.ndarray  # (K,) [m]
+    v0: np.ndarray  # (K,) [m/s]
+    a0: np.ndarray  # (K,) [m/s**2]
+    jerk: np.ndarray  # (K,) [m/s**3]
+
+    @property
+    def duration(self):
+        return float(self.times[-1])
+
+    def state(self, t):
+        """Return (s, v, a, j), each shaped like ``t`` (N,)."""
+        index = np.clip(np.searchsorted(self.times, t, side='right') - 1, 0, self.jerk.size - 1)
+        x = t - self.times[index]
+        j, a, v = self.jerk[index], self.a0[index], self.v0[index]
+        return (self.s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)),
+                v + x * (a + x * j / 2.0), a + x * j, j)
+
+
+class _PieceList:
+    """Collects constant-jerk pieces (duration, s, v, a, j) into a :class:`_JerkPieces`."""
+
+    def __init__(self):
+        self.rows = []
+
+    def add(self, duration, s, v, a, j):
+        if duration > 0.0:
+            self.rows.append((duration, s, v, a, j))
+
+    def extend(self, rows, s_offset=0.0):
+        for duration, s, v, a, j in rows:
+            self.add(duration, s + s_offset, v, a, j)
+
+    def law(self):
+        rows = np.array(self.rows, dtype=float).reshape(-1, 5)
+        times = np.concatenate(([0.0], np.cumsum(rows[:, 0])))
+        return _JerkPieces(times, rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4])
+
+
+def _pieces_law(rows, s_offset=0.0):
+    pieces = _PieceList()
+    pieces.extend(rows, s_offset)
+    return pieces.law()
+
+
+def _rows_duration(rows):
+    return float(sum(row[0] for row in rows))
+
+
+@dataclass(frozen=True, eq=False)
+class _Sequence:
+    """Laws run one after the other."""
+
+    laws: tuple
+
+    @property
+    def duration(self):
+        return float(sum(law.duration for law in self.laws))
+
+    def state(self, t):
+        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
+        which = np.clip(np.searchsorted(starts, t, side='right') - 1, 0, len(self.laws) - 1)
+        out = [np.empty_like(t) for _ in range(4)]
+        for index, law in enumerate(self.laws):
+            mask = which == index
+            if np.any(mask):
+                for target, value in zip(out, law.state(t[mask] - starts[index])):
+                    target[mask] = value
+        return tuple(out)
+
+
+# -- the result -------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class TimedMotion:
+    """
+    A timed motion along a path (build it with :func:`time_motion`).
+
+    Attributes
+    ----------
+    path : PickPlacePath
+        The geometric path.
+    profile : str
+        One of ``PROFILES``.
+    duration : float
+        Total time [s].
+    segment_durations : numpy.ndarray
+        Time on the lift, the arc and the descent [s], shape (3,). A pure
+        vertical move counts as lift (going up) or descent (going down).
+    accel_jump_T1, accel_jump_T2 : float
+        Step of the acceleration vector at T1 and T2 [m/s**2].
+    n_nodes : int or None
+        Nodes of the paper's node list (curvature profile), else None.
+    law : object
+        The timing law s(t) it was built from (internal; read it through
+        :meth:`path_state`).
+    time_scale : float
+        Uniform slow-down applied to ``law`` (>= 1).
+    node_period : float or None
+        The paper's fixed time step Delta t between nodes [s] (curvature
+        profile: r / K), else None.
+
+    """
+
+    path: PickPlacePath
+    profile: str
+    duration: float
+    segment_durations: np.ndarray
+    accel_jump_T1: float
+    accel_jump_T2: float
+    n_nodes: object
+    law: object = field(repr=False)
+    time_scale: float = 1.0
+    node_period: object = None
+
+    def __post_init__(self):
+        if not isinstance(self.path, PickPlacePath):
+            raise InvalidInputError(
+                f'path: expected a PickPlacePath, got {type(self.path).__name__}')
+        if self.profile not in PROFILES:
+            raise InvalidInputError(
+                f'profile: expected one of {", ".join(PROFILES)}, got {self.profile!r}')
+        require_range('time_scale', self.time_scale, 1.0, math.inf)
+        duration = require_range('duration', self.duration, 0.0, math.inf, low_open=True,
+                                 unit='s')
+        segments = np.asarray(self.segment_durations, dtype=float)
+        if (segments.shape != (3,) or not np.all(np.isfinite(segments))
+                or np.any(segments < 0.0) or abs(segments.sum() - duration) > 1e-9 * duration):
+            raise InvalidInputError(
+                f'segment_durations: expected 3 non-negative times summing to the duration '
+                f'{duration:.9g} s, got {segments.tolist()}')
+        object.__setattr__(self, 'segment_durations', segments)
+        for name in ('accel_jump_T1', 'accel_jump_T2'):
+            require_range(name, getattr(self, name), 0.0, math.inf, unit='m/s^2')
+        if self.node_period is not None:
+            require_range('node_period', self.node_period, 0.0, math.inf, low_open=True,
+                          unit='s')
+
+    def path_state(self, t):
+        """
+        Return the path state at times ``t``.
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s], shape (N,), within [0, duration].
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            (s, s', s'', s''') [m, m/s, m/s**2, m/s**3], each of shape (N,).
+
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        tolerance = 1e-9 * self.duration
+        if t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(t < -tolerance) or np.any(
+                t > self.duration + tolerance):
+            raise InvalidInputError(
+                f't: expected finite times of shape (N,) in [0, {self.duration:.9g}] s, got '
+                f'shape {t.shape}, range [{np.min(t) if t.size else 0.0:.9g}, '
+                f'{np.max(t) if t.size else 0.0:.9g}]')
+        factor = self.time_scale
+        s, v, a, j = self.law.state(np.clip(t, 0.0, self.duration) / factor)
+        return s, v / factor, a / factor ** 2, j / factor ** 3
+
+    def evaluate(self, t):
+        """
+        Return the TCP motion at times ``t``.
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s], shape (N,), within [0, duration].
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Position [m], velocity [m/s], acceleration [m/s**2] and jerk
+            [m/s**3], each of shape (N, 3), base frame. At T1 and T2 the
+            acceleration steps (the curvature does); there the line's side is
+            returned.
+
+        """
+        s, v, a, j = self.path_state(t)
+        return _cartesian(self.path, s, v, a, j)
+
+    def metrics(self, sample_period=_CHECK_PERIOD):
+        """
+        Return the motion's numbers, sampled every ``sample_period``.
+
+        Parameters
+        ----------
+        sample_period : float
+            Time between samples [s], in (0, 0.1]; longer where the motion
+            would need more than ``_METRICS_SAMPLES`` samples.
+
+        Returns
+        -------
+        dict
+            ``duration`` [s], ``segment_durations`` (list of 3) [s],
+            ``peak_speed`` [m/s], ``peak_accel`` [m/s**2], ``peak_jerk``
+            [m/s**3] (the steps at T1/T2 are not jerk), ``accel_jump_T1`` and
+            ``accel_jump_T2`` [m/s**2]; plain floats.
+
+        """
+        period = require_range('sample_period', sample_period, 0.0, 0.1, low_open=True,
+                               unit='s')
+        period = max(period, self.duration / _METRICS_SAMPLES)
+        speed, accel, jerk = _norms(self, _check_times(self, period))[1:]
+        return {'duration': float(self.duration),
+                'segment_durations': [float(value) for value in self.segment_durations],
+                'peak_speed': float(speed.max()), 'peak_accel': float(accel.max()),
+                'peak_jerk': float(jerk.max()), 'accel_jump_T1': float(self.accel_jump_T1),
+                'accel_jump_T2': float(self.accel_jump_T2)}
+
+    def jerk_steps(self):
+        """
+        Return the times [s] (K,) and sizes [m/s**3] (K,) of the steps of the TCP jerk.
+
+        The jerk steps where the law's third derivative does (its piece bounds)
+        and where the path's curvature rate does (T1, T2 and, with a G2 join,
+        where the transitions meet the ellipse); the size is the norm of the
+        difference of the one-sided jerk vectors.
+        """
+        law_times = getattr(self.law, 'times', None)
+        candidates = [] if law_times is None else [law_times[1:-1] * self.time_scale]
+        path = self.path
+        if path.bend is not None:
+            bend = path.bend
+            marks = list(path.segment_ends[1:3])
+            if path.join == 'g2':
+                marks += list(path.segment_ends[1] + bend.s_from_t(
+                    np.array([math.pi - bend.span_1, bend.span_2])))
+            t = _sample_times(self.duration, _CHECK_PERIOD)
+            candidates.append(np.interp(marks, self.path_state(t)[0], t))
+        times = np.unique(np.concatenate(candidates)) if candidates else np.zeros(0)
+        times = times[(times > 0.0) & (times < self.duration)]
+        epsilon = 1e-9 * self.duration
+        before = self.evaluate(np.maximum(times - epsilon, 0.0))[3]
+        after = self.evaluate(np.minimum(times + epsilon, self.duration))[3]
+        return times, np.linalg.norm(after - before, axis=1)
+
+    def scaled(self, factor):
+        """
+        Return the same motion slowed down uniformly in time.
+
+        Parameters
+        ----------
+        factor : float
+            Time-scaling factor, >= 1: durations x factor, velocities / factor,
+            accelerations / factor**2, jerks / factor**3.
+
+        Returns
+        -------
+        TimedMotion
+
+        """
+        factor = require_range('factor', factor, 1.0, 1e6)
+        return replace(self, duration=self.duration * factor,
+                       segment_durations=self.segment_durations * factor,
+                       accel_jump_T1=self.accel_jump_T1 / factor ** 2,
+                       accel_jump_T2=self.accel_jump_T2 / factor ** 2,
+                       time_scale=self.time_scale * factor,
+                       node_period=None if self.node_period is None
+                       else self.node_period * factor)
+
+
+def _cartesian(path, s, v, a, j):
+    """Return position, velocity, acceleration and jerk (N, 3) from the path state."""
+    samples = path.evaluate(s)
+    tangent, curvature, rate = samples.tangent, samples.curvature, samples.curvature_rate
+    return (samples.position, v[:, None] * tangent,
+            a[:, None] * tangent + (v * v)[:, None] * curvature,
+            j[:, None] * tangent + (3.0 * v * a)[:, None] * curvature
+            + (v ** 3)[:, None] * rate)
+
+
+def _sample_times(duration, period):
+    """Return times from 0 to ``duration`` at most ``period`` apart, ends included."""
+    return np.linspace(0.0, duration, int(math.ceil(duration / period)) + 1)
+
+
+def _check_times(motion, period):
+    """
+    Return sample times of ``motion`` for its peaks: a grid plus both sides of every piece bound.
+
+    Between the bounds of its constant-jerk pieces the motion is smooth, and the
+    largest jerk (often the largest acceleration) sits at a bound: the grid
+    alone would miss it by up to its period.
+    """
+    law_times = getattr(motion.law, 'times', None)
+    grid = _sample_times(motion.duration, period)
+    if law_times is None:
+        return grid
+    bounds = law_times[1:-1] * motion.time_scale
+    # Just off the bound on both sides: at the bound itself the law is the next piece's
+    # while the path may still be the previous segment's (at T1, T2).
+    epsilon = 1e-9 * motion.duration
+    return np.sort(np.concatenate((grid, np.maximum(bounds - epsilon, 0.0),
+                                   np.minimum(bounds + epsilon, motion.duration))))
+
+
+def _norms(motion, t):
+    """Return (s', |velocity|, |acceleration|, |jerk|) of ``motion`` at ``t``, each (N,)."""
+    s, v, a, j = motion.path_state(t)
+    _, velocity, acceleration, jerk = _cartesian(motion.path, s, v, a, j)
+    return (s, np.linalg.norm(velocity, axis=1), np.linalg.norm(acceleration, axis=1),
+            np.linalg.norm(jerk, axis=1))

@@ -1,0 +1,841 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The time-optimal profile (beyond the paper): a jerk-limited path-space scan along the arc.
+
+The fastest motion found along the path with speed <= max_speed,
+acceleration vector norm <= max_accel (tangential s'' and normal
+s'**2 kappa together), jerk vector norm <= max_jerk (jerk =
+p''' s'**3 + 3 p'' s' s'' + p' s''', p = p(s)), acceleration step at
+T1/T2 (s'**2 times the arc's end curvature, the lines being straight)
+<= max_accel_jump, an optional speed cap s' <= speed_cap(s), from rest to
+rest. See :func:`~ellipath_ros.core.timing.time_motion` for the construction.
+"""
+
+from bisect import bisect_right
+import math
+
+import numpy as np
+
+from .errors import LimitError
+from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .motion import _PieceList, _rows_duration, TimedMotion
+from .ruckig_lines import (
+    _constant_limits, _line_rows, _reach_speed, _ruckig_rows, _vertical_motion)
+
+# Time step of the path-space scans [s]: the short one where the curvature (1/m) is above
+# _SCAN_KAPPA, where the limits change fast along the path.
+_SCAN_STEP = 1e-3
+_SCAN_STEP_SHORT = 5e-4
+_SCAN_KAPPA = 8.0
+# ... and shorter still where the curvature changes by more than this share within a step
+# (not below _SCAN_STEP_MIN).
+_SCAN_KAPPA_CHANGE = 0.1
+_SCAN_STEP_MIN = 2e-5
+# Grid of the curvature tables along the arc (intervals; more for very tight bends).
+_TABLE_INTERVALS = 2048
+_TABLE_INTERVALS_MAX = 16384
+# Share of the jerk budget the scans give the normal component (3 kappa v a + kappa_s v**3),
+# leaving the rest for changing the tangential acceleration.
+_NORMAL_JERK_SHARE = 0.9
+# Levelling off looks ahead by the distance it takes at least at this share of max_accel.
+_LEVEL_REACH = 0.1
+# A scan slowing down below this speed [m/s] stops (the other scan covers the rest).
+_MIN_SCAN_SPEED = 1e-3
+# Share of the jerk available in the state with which a scan ramps its acceleration down when
+# it levels off at the speed limit.
+_LEVEL_OFF_JERK = 0.9
+# A scan that cannot follow a falling acceleration bound backs up this many steps and lowers
+# its acceleration target by this factor over the troubled stretch, at most this often.
+_BACK_UP_STEPS = 20
+_BACK_UP_AHEAD = 5e-3
+_BACK_UP_FACTOR = 0.75
+_BACK_UP_LIMIT = 30
+# Interior speed valleys: first try at this share of the local speed ceiling, then lower.
+_VALLEY_SHARE = 0.9
+_VALLEY_RETRY_FACTOR = 0.6
+_VALLEY_TRIES = 4
+_VALLEY_DEPTH = 6
+# Valleys are looked for this far [m] beyond where the scans stopped.
+_VALLEY_REACH = 0.02
+# An end speed (T1, T2) the arc cannot take comes down by this factor, at most this often.
+_END_RETRY_FACTOR = 0.8
+_END_TRIES = 12
+# Stretches solved per plan before giving up on the scans (the fallback then serves).
+_HILL_BUDGET = 40
+# The sure but slow construction, when the scans find nothing: Ruckig pieces between knots.
+_FALLBACK_PIECES = 24
+# Steps both scans go on past their crossing, room for the piece that joins them.
+_JOIN_ROOM_STEPS = 40
+# Share of the acceleration and jerk limits that cruising (s'' = 0) uses at the ceiling that
+# places speed valleys.
+_CEILING_SHARE = 0.9
+# The speed cap along the arc is taken as stairs this many table cells long.
+_CAP_STAIR = 8
+
+
+class _NoMotion(Exception):
+    """The scans found no motion for a stretch (the caller tries something slower)."""
+
+
+class _EndTooFast(Exception):
+    """The scan from T1 (``at_start``) or T2 gives up: that end's speed must come down."""
+
+    def __init__(self, at_start):
+        super().__init__()
+        self.at_start = at_start
+
+
+class _ArcTable:
+    """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
+
+    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap')
+
+    def __init__(self, length, kappa, kappa_s, cap):
+        # Lists, not arrays: the scans read single values, which lists serve faster.
+        self.length = length
+        self.step = length / (len(kappa) - 1)
+        self.last = len(kappa) - 2
+        self.kappa, self.kappa_s, self.cap = kappa, kappa_s, cap
+
+    def backwards(self):
+        """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
+        return _ArcTable(self.length, self.kappa[::-1], [-value for value in self.kappa_s[::-1]],
+                         self.cap[::-1])
+
+    def at(self, s):
+        """Return (kappa, dkappa/ds, speed cap) at arc length ``s``."""
+        x = s / self.step
+        index = min(max(int(x), 0), self.last)
+        fraction = x - index
+        kappa, kappa_s, cap = self.kappa, self.kappa_s, self.cap
+        return (kappa[index] + fraction * (kappa[index + 1] - kappa[index]),
+                kappa_s[index] + fraction * (kappa_s[index + 1] - kappa_s[index]),
+                cap[index])
+
+
+class _Scan:
+    """
+    States (t, s, s', s'') of a greedy scan along the arc and the jerk of each step.
+
+    ``t``, ``s``, ``v``, ``a`` have one entry per state, ``j`` one per step.
+    ``status`` is 'live', 'end' (reached ``end``), 'speed' (the speed became
+    too high for what lies ahead: the other scan covers it) or 'accel' (gave
+    up after ``failures`` back-ups).
+    """
+
+    __slots__ = ('t', 's', 'v', 'a', 'j', 'end', 'status', 'failures')
+
+    def __init__(self, s, v, a, end):
+        self.t, self.s, self.v, self.a, self.j = [0.0], [s], [v], [a], []
+        self.end, self.status, self.failures = end, 'live', 0
+
+    def speed_at(self, s_query):
+        """Return s' at ``s_query`` interpolated between states, or None outside the scan."""
+        position = bisect_right(self.s, s_query)
+        if position == 0 or position >= len(self.s):
+            return None
+        low, high = self.s[position - 1], self.s[position]
+        x = (s_query - low) / (high - low) if high > low else 0.0
+        return self.v[position - 1] + x * (self.v[position] - self.v[position - 1])
+
+    def state(self, time):
+        """Return (s, s', s'') at ``time`` (clamped to the scan)."""
+        index = min(max(bisect_right(self.t, time) - 1, 0), max(len(self.j) - 1, 0))
+        if not self.j:
+            return self.s[0], self.v[0], self.a[0]
+        x = time - self.t[index]
+        v, a, j = self.v[index], self.a[index], self.j[index]
+        return (self.s[index] + x * (v + x * (a / 2.0 + x * j / 6.0)),
+                v + x * (a + x * j / 2.0), a + x * j)
+
+    def time_at(self, s_query):
+        """Return the time at which the scan reaches ``s_query`` (within its range)."""
+        index = min(max(bisect_right(self.s, s_query) - 1, 0), max(len(self.j) - 1, 0))
+        low, high = self.t[index], self.t[min(index + 1, len(self.t) - 1)]
+        for _ in range(60):
+            middle = 0.5 * (low + high)
+            if self.state(middle)[0] < s_query:
+                low = middle
+            else:
+                high = middle
+        return 0.5 * (low + high)
+
+    def rows(self, time):
+        """Return the pieces from the start to ``time``."""
+        rows = []
+        for index, jerk in enumerate(self.j):
+            if self.t[index] >= time:
+                break
+            rows.append((min(self.t[index + 1], time) - self.t[index], self.s[index],
+                         self.v[index], self.a[index], jerk))
+        return rows
+
+    def reversed_rows(self, time, length):
+        """Return the forward-time pieces of a backward scan from ``time`` back to its start."""
+        rows = []
+        index = min(max(bisect_right(self.t, time) - 1, 0), len(self.j) - 1)
+        s, v, a = self.state(time)
+        if time > self.t[index]:
+            rows.append((time - self.t[index], length - s, v, -a, self.j[index]))
+        for index in range(index - 1, -1, -1):
+            rows.append((self.t[index + 1] - self.t[index], length - self.s[index + 1],
+                         self.v[index + 1], -self.a[index + 1], self.j[index]))
+        return rows
+
+
+class _Scanner:
+    """The greedy path-space scan along one direction of the arc (see :func:`time_motion`)."""
+
+    def __init__(self, table, limits):
+        self.table = table
+        self.speed = limits.max_speed * _SPEED_MARGIN
+        self.accel = limits.max_accel * _ACCEL_MARGIN
+        self.jerk = limits.max_jerk * _JERK_MARGIN
+        self.factor = [1.0] * (len(table.kappa) + 1)
+
+    def jerk_range(self, s, v, a):
+        """Return the (lowest, highest) s''' keeping |jerk| <= limit at (s, v, a), or None."""
+        kappa, kappa_s, _ = self.table.at(s)
+        return self._jerk_range(kappa, kappa_s, v, a)
+
+    def _jerk_range(self, kappa, kappa_s, v, a):
+        # |jerk|**2 = (s''' - kappa**2 v**3)**2 + (kappa_s v**3 + 3 kappa v a)**2.
+        v3 = v * v * v
+        normal = kappa_s * v3 + 3.0 * kappa * v * a
+        if abs(normal) >= self.jerk:
+            return None
+        room = math.sqrt(self.jerk ** 2 - normal * normal)
+        return kappa * kappa * v3 - room, kappa * kappa * v3 + room
+
+    def _target(self, s, v, kappa, kappa_s, cap):
+        """
+        Return the largest s'' to aim at in state (s, v), or None if v is too high there.
+
+        Below the acceleration norm, and such that the normal jerk
+        3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for
+        changing s'' (with s''' = 0 feasible: the tangential part of p''' v**3
+        is -kappa**2 v**3). Negative where the curvature tightens too fast for
+        the speed: the scan then slows down. A back-up lowers it.
+        """
+        if v <= 0.0 or v > cap * (1.0 + 1e-9):
+            return None
+        normal = kappa * v * v
+        centripetal = kappa * kappa * v ** 3
+        if normal >= self.accel or centripetal >= self.jerk:
+            return None
+        tangential = math.sqrt(self.accel ** 2 - normal * normal)
+        target, lowest = tangential, -tangential
+        if kappa * v > 0.0:
+            share = _NORMAL_JERK_SHARE * math.sqrt(self.jerk ** 2 - centripetal ** 2)
+            target = min(target, (share - kappa_s * v ** 3) / (3.0 * kappa * v))
+            lowest = max(lowest, (-share - kappa_s * v ** 3) / (3.0 * kappa * v))
+        factor = self.factor[min(max(int(s / self.table.step), 0), len(self.factor) - 1)]
+        target = factor * target if target > 0.0 else target - (1.0 - factor) * self.accel
+        return target if target >= lowest else None
+
+    def step(self, s, v, a):
+        """Take one scan step from state (s, v, a): (h, s, v, a, jerk) or a failure string."""
+        at = self.table.at
+        kappa, kappa_s, cap = at(s)
+        bounds = self._jerk_range(kappa, kappa_s, v, a)
+        speed = min(self.speed, cap)
+        if bounds is None or v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
+            return 'speed'
+        lowest, highest = bounds
+        h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
+        if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
+            # The curvature changes fast here (a needle-sharp bend): shorter steps.
+            h = max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
+        # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
+        level = _LEVEL_OFF_JERK * max(-lowest, 1e-3 * self.jerk)
+        # Level off (and cruise) at the lowest speed limit until where the levelling off
+        # would end.
+        reach = v * max(a, _LEVEL_REACH * self.accel) / level
+        goal = min(speed, at(s + 0.5 * reach)[2], at(s + reach)[2])
+        if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
+            jerk, a = 0.0, 0.0
+            # Cruising changes nothing but the place: up to half a table cell per step.
+            h = max(h, 0.5 * self.table.step / v)
+        elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
+            jerk, h = self._level_off(v, a, goal, h, level)
+        else:
+            jerk = highest
+            for _ in range(12):
+                s1 = s + h * (v + h * (a / 2.0 + h * jerk / 6.0))
+                v1 = v + h * (a + h * jerk / 2.0)
+                target = self._target(s1, v1, *at(s1))
+                if target is None:
+                    # Too fast at the step's end: try less jerk (down to the lowest).
+                    if jerk <= lowest + 1e-9:
+                        return 'speed'
+                    jerk = 0.5 * (jerk + lowest)
+                    continue
+                if a + jerk * h <= target + 1e-12:
+                    break
+                jerk = (target - a) / h
+            a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
+            if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
+                h = self._until_level_off(v, a, jerk, h, goal, level)
+                if h <= 1e-12:
+                    jerk, h = self._level_off(v, a, goal, _SCAN_STEP_SHORT, level)
+            elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
+                # s'' passes 0 inside the step: its speed peak must stay below the limit too.
+                jerk, h = self._level_off(v, a, goal, h, level)
+        if jerk >= lowest - 1e-9:
+            jerk = self._end_feasible(s, v, a, jerk, lowest, h)
+            if jerk is not None:
+                return (h, s + h * (v + h * (a / 2.0 + h * jerk / 6.0)),
+                        v + h * (a + h * jerk / 2.0), a + h * jerk, jerk)
+        # Not accelerating, the speed itself is too high for what follows.
+        return 'accel' if a > 1e-9 else 'speed'
+
+    def _level_off(self, v, a, speed, h, level):
+        """Return (jerk, step): constant jerk bringing s'' to 0 exactly at s' = speed."""
+        gap = speed - v
+        jerk = -level if gap <= 0.0 else max(-a * a / (2.0 * gap), -self.jerk)
+        return jerk, min(h, a / -jerk)
+
+    def _until_level_off(self, v, a, jerk, h, speed, level):
+        """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
+        low, high = 0.0, h
+        for _ in range(40):
+            x = 0.5 * (low + high)
+            a1 = a + jerk * x
+            if v + x * (a + x * jerk / 2.0) + a1 * a1 / (2.0 * level) > speed:
+                high = x
+            else:
+                low = x
+        return low
+
+    def _end_feasible(self, s, v, a, jerk, lowest, h):
+        """Return ``jerk``, or the largest one in [lowest, jerk] legal at the step's end."""
+        def legal(value):
+            bounds = self.jerk_range(s + h * (v + h * (a / 2.0 + h * value / 6.0)),
+                                     v + h * (a + h * value / 2.0), a + h * value)
+            return bounds is not None and bounds[0] - 1e-9 <= value <= bounds[1] + 1e-9
+        if legal(jerk):
+            return jerk
+        low, high, best = lowest, jerk, None
+        for _ in range(12):
+            middle = 0.5 * (low + high)
+            if legal(middle):
+                best, low = middle, middle
+            else:
+                high = middle
+        return best
+
+    def advance(self, scan, back_up=True):
+        """
+        Take one step of ``scan``; return False once it cannot go on (see its status).
+
+        Where the acceleration bound falls faster than the jerk can follow,
+        the scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target
+        over the stretch (lower again on repeated trouble).
+        """
+        if scan.status != 'live':
+            return False
+        if scan.s[-1] >= scan.end:
+            scan.status = 'end'
+            return False
+        result = self.step(scan.s[-1], scan.v[-1], scan.a[-1])
+        if not isinstance(result, str):
+            h, s1, v1, a1, jerk = result
+            scan.t.append(scan.t[-1] + h)
+            scan.s.append(s1)
+            scan.v.append(v1)
+            scan.a.append(a1)
+            scan.j.append(jerk)
+            return True
+        if result == 'speed' or scan.failures >= _BACK_UP_LIMIT or not back_up:
+            scan.status = result
+            return False
+        scan.failures += 1
+        last = len(scan.s) - 1
+        first = max(0, last - _BACK_UP_STEPS)
+        step = self.table.step
+        bins = range(max(int(scan.s[first] / step), 0),
+                     min(int((scan.s[last] + _BACK_UP_AHEAD) / step) + 1, len(self.factor)))
+        lowered = _BACK_UP_FACTOR * min(self.factor[index] for index in bins)
+        for index in bins:
+            self.factor[index] = min(self.factor[index], lowered)
+        for values in (scan.t, scan.s, scan.v, scan.a):
+            del values[first + 1:]
+        del scan.j[first:]
+        return True
+
+
+class _ArcPlanner:
+    """The time-optimal construction on the arc: scans, joins and speed valleys."""
+
+    def __init__(self, path, limits, speed_cap):
+        bend = path.bend
+        self.path, self.limits = path, limits
+        self.length = float(path.segment_lengths[1])
+        # Curvature on a fine grid of the curve parameter, resampled uniformly in s.
+        # Cells no longer than the smallest radius of curvature (the arc may be a needle).
+        intervals = int(min(_TABLE_INTERVALS_MAX, max(_TABLE_INTERVALS, 2 ** math.ceil(
+            math.log2(self.length / bend.min_radius)))))
+        t = np.linspace(math.pi, 0.0, 2 * intervals + 1)
+        sigma = bend.speed(t)
+        # Arc length by Simpson on pairs of intervals, scaled to the exact length.
+        pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (math.pi / len(sigma))
+        s_t = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2),
+                        np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0)))
+        s_t *= self.length / s_t[-1]
+        grid = np.linspace(0.0, self.length, intervals + 1)
+        kappa_t, kappa_s_t = bend.curvature_and_rate(t)
+        # The bend never turns the other way; a G2 end's 0 may round to -1e-14.
+        kappa = np.maximum(np.interp(grid, s_t, kappa_t), 0.0)
+        kappa_s = np.interp(grid, s_t, kappa_s_t)
+        # The speed cap as stairs of _CAP_STAIR cells, each at the lowest value it spans: the
+        # scans level off on a stair and cruise, and two scans cruising on one stair meet.
+        cells = np.full(intervals, math.inf)
+        if speed_cap is not None:
+            values = _SPEED_MARGIN * _cap_values(speed_cap, path.segment_lengths[0] + grid)
+            lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
+            cells = np.repeat(lowest, _CAP_STAIR)
+        self.grid = grid
+        table = _ArcTable(self.length, kappa.tolist(), kappa_s.tolist(), cells.tolist())
+        self.forward = _Scanner(table, limits)
+        self.backward = _Scanner(table.backwards(), limits)
+        # The ceiling places the speed valleys and their speeds.
+        cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
+        self.ceiling = self._cruise_speed(kappa, kappa_s, cap, _CEILING_SHARE)
+        # A G2 join's ends have curvature 0 exactly (the table holds rounding there).
+        self.kappa_end = ((0.0, 0.0) if path.join == 'g2'
+                          else (float(kappa[0]), float(kappa[-1])))
+        self.hills = 0
+
+    def _cruise_speed(self, kappa, kappa_s, cap, share):
+        """Return the speed at which s'' = 0 uses ``share`` of the accel and jerk limits."""
+        limits = self.limits
+        accel, jerk = limits.max_accel * _ACCEL_MARGIN, limits.max_jerk * _JERK_MARGIN
+        with np.errstate(divide='ignore'):
+            return np.minimum.reduce([
+                np.full(kappa.shape, limits.max_speed * _SPEED_MARGIN), cap,
+                np.sqrt(share * accel / kappa),
+                (share * jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
+
+    def end_speed(self, clearance, at_start, speed_cap):
+        """Return the speed aimed at at T1 (``at_start``) or T2, with s'' = 0 there."""
+        limits = self.limits
+        index = 0 if at_start else -1
+        # A G2 join has no curvature at T1/T2, hence no acceleration step to bound.
+        step_speed = (math.inf if self.kappa_end[index] <= 0.0 else
+                      math.sqrt(limits.max_accel_jump / self.kappa_end[index]) * (1.0 - 1e-3))
+        speed = min(float(self.ceiling[index]), step_speed,
+                    _reach_speed(clearance, limits.max_accel * _ACCEL_MARGIN,
+                                 limits.max_jerk * _JERK_MARGIN) * (1.0 - 1e-3))
+        if speed_cap is not None and clearance > 0.0:
+            start = 0.0 if at_start else self.path.length - clearance
+            speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
+                speed_cap, np.linspace(start, start + clearance, _LIMIT_SAMPLES)))))
+        return speed
+
+    def solve(self, v_in, v_out):
+        """
+        Return (arc rows, entry (s', s''), exit (s', s'')) from T1 to T2.
+
+        An end speed the arc cannot take (the curvature grows too fast just
+        inside it) comes down by ``_END_RETRY_FACTOR`` until it can.
+        """
+        for _ in range(_END_TRIES):
+            try:
+                return self._hill(0.0, (v_in, 0.0), self.length, (v_out, 0.0), True, True, 0)
+            except _EndTooFast as trouble:
+                if trouble.at_start:
+                    v_in *= _END_RETRY_FACTOR
+                else:
+                    v_out *= _END_RETRY_FACTOR
+        raise _NoMotion()
+
+    def _hill(self, s_a, state_a, s_b, state_b, free_a, free_b, depth):
+        """
+        Solve [s_a, s_b] from state_a to state_b ((s', s'') each).
+
+        A free end (T1, T2) may end at a lower state when the other scan
+        never comes down to it (the clearance then adapts); a fixed end (a
+        speed valley) may not.
+        """
+        self.hills += 1
+        if self.hills > _HILL_BUDGET:
+            raise _NoMotion()
+        length = self.length
+        forward = _Scan(s_a, state_a[0], state_a[1], s_b)
+        backward = _Scan(length - s_b, state_b[0], -state_b[1], length - s_a)
+        self._scan_both(forward, backward)
+        joined = self._join(forward, backward)
+        if joined is not None:
+            return joined, state_a, state_b
+
+        if forward.status == 'end' and free_b:
+            time = forward.time_at(s_b)
+            end = forward.state(time)
+            if end[1] <= state_b[0] * (1.0 + 1e-9):
+                return forward.rows(time), state_a, end[1:]
+        if backward.status == 'end' and free_a:
+            time = backward.time_at(length - s_a)
+            end = backward.state(time)
+            if end[1] <= state_a[0] * (1.0 + 1e-9):
+                return backward.reversed_rows(time, length), (end[1], -end[2]), state_b
+        index = self._valley_index(forward, backward, s_a, s_b)
+        if index is not None and depth < _VALLEY_DEPTH:
+            return self._split(index, s_a, state_a, s_b, state_b, free_a, free_b, depth)
+        # No valley in between: a scan from a free end that gives up started too fast.
+        failed_a = forward.status != 'end' and free_a
+        failed_b = backward.status != 'end' and free_b
+        if failed_a and failed_b:
+            failed_a = forward.s[-1] - s_a < backward.s[-1] - (length - s_b)
+            failed_b = not failed_a
+        if failed_a or failed_b:
+            raise _EndTooFast(failed_a)
+        raise _NoMotion()
+
+    def _valley_index(self, forward, backward, s_a, s_b):
+        """
+        Return the grid index of the lowest ceiling between where the scans stopped, or None.
+
+        Only a true valley counts: lower than the ceiling at both ends of the
+        stretch searched (which reaches ``_VALLEY_REACH`` beyond the scans' ends).
+        """
+        grid_step = self.grid[1]
+        margin = 4 * grid_step
+        ends = sorted((forward.s[-1], self.length - backward.s[-1]))
+        low = int(max(ends[0] - _VALLEY_REACH, s_a + margin) / grid_step)
+        high = int(min(ends[1] + _VALLEY_REACH, s_b - margin) / grid_step) + 1
+        if high - low < 3:
+            return None
+        index = low + int(np.argmin(self.ceiling[low:high]))
+        lowest = self.ceiling[index]
+        if lowest < self.ceiling[low] * (1.0 - 1e-9) and lowest < self.ceiling[high - 1] * (
+                1.0 - 1e-9):
+            return index
+        return None
+
+    def _split(self, index, s_a, state_a, s_b, state_b, free_a, free_b, depth):
+        """Solve [s_a, s_b] as two parts meeting at rest acceleration in valley ``index``."""
+        s_v = float(self.grid[index])
+        for attempt in range(_VALLEY_TRIES):
+            valley = (float(self.ceiling[index]) * _VALLEY_SHARE * _VALLEY_RETRY_FACTOR ** attempt,
+                      0.0)
+            try:
+                left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
+                right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
+                                                  depth + 1)
+            except _NoMotion:
+                continue
+            return left + right, entry, exit_state
+        raise _NoMotion()
+
+    def _scan_both(self, forward, backward):
+        """
+        Advance the slower of the two scans until the two speed curves cross.
+
+        Both scans speed up away from their start, so the crossing lies
+        where the slower one catches up; neither needs to run past it.
+        """
+        length = self.length
+        while forward.status == 'live' or backward.status == 'live':
+            if forward.status == 'live' and (backward.status != 'live'
+                                             or forward.v[-1] <= backward.v[-1]):
+                if self.forward.advance(forward):
+                    other = backward.speed_at(length - forward.s[-1])
+                    if other is not None and forward.v[-1] >= other * (1.0 - 1e-12):
+                        break
+            elif self.backward.advance(backward):
+                other = forward.speed_at(length - backward.s[-1])
+                if other is not None and backward.v[-1] >= other * (1.0 - 1e-12):
+                    break
+        # Room on both sides of the crossing for the joining piece (no backing up past it).
+        for _ in range(_JOIN_ROOM_STEPS):
+            self.forward.advance(forward, back_up=False)
+            self.backward.advance(backward, back_up=False)
+
+    def _join(self, forward, backward):
+        """
+        Return the rows forward scan -> one constant-jerk piece -> backward scan, or None.
+
+        The piece starts at time x of the forward scan, ends at time y of the
+        backward one and has jerk j: s, s', s'' must match at both ends,
+        three equations in x, y and the piece's duration (see
+        :meth:`_solve_join`). Where both scans cruise at the same speed, they
+        are simply switched.
+        """
+        length = self.length
+        crossing = self._crossing(forward, backward)
+        if crossing is None:
+            return None
+        index, cruising = crossing
+        if cruising:
+            s_join = forward.s[index]
+            y = backward.time_at(length - s_join)
+            return forward.rows(forward.t[index]) + backward.reversed_rows(y, length)
+        x_c = forward.t[index]
+        y_c = backward.time_at(length - forward.s[index])
+        a_f = forward.state(x_c)[2]
+        a_b = -backward.state(y_c)[2]
+        bounds = self.forward.jerk_range(forward.s[index], forward.v[index], a_f)
+        if bounds is None:
+            return None
+        jerk = 0.99 * (bounds[0] if a_b < a_f else bounds[1])
+        for _ in range(5):
+            solution = self._solve_join(forward, backward, x_c, y_c, jerk)
+            if solution is None:
+                return None
+            x, y, duration = solution
+            worst = self._piece_check(forward.state(x), duration, jerk)
+            if worst is None:
+                return None
+            if worst == jerk:
+                s, v, a = forward.state(x)
+                return (forward.rows(x) + [(duration, s, v, a, jerk)]
+                        + backward.reversed_rows(y, length))
+            jerk = 0.99 * worst
+        return None
+
+    def _crossing(self, forward, backward):
+        """Return (forward index, both cruising) where the forward scan first tops the backward."""
+        length = self.length
+        sigma = backward.s
+        previous = None
+        for index in range(len(forward.s)):
+            s = forward.s[index]
+            position = bisect_right(sigma, length - s)
+            if position == 0 or position >= len(sigma):
+                continue
+            x = (length - s - sigma[position - 1]) / (sigma[position] - sigma[position - 1])
+            v_b = backward.v[position - 1] + x * (backward.v[position] - backward.v[position - 1])
+            difference = forward.v[index] - v_b
+            if (abs(difference) <= 1e-9 * v_b and index < len(forward.j)
+                    and forward.j[index] == 0.0 and forward.a[index] == 0.0
+                    and backward.a[position] == 0.0 and backward.a[position - 1] == 0.0):
+                return index, True
+            if difference > 1e-12 and previous is not None:
+                return index, False
+            previous = difference
+        return None
+
+    def _solve_join(self, forward, backward, x, y, jerk):
+        """Solve the join for (x, y, duration) near the crossing (x, y); None if it fails."""
+        length = self.length
+        x_max, y_max = forward.t[-1], backward.t[-1]
+
+        def residual(x, y):
+            s_f, v_f, a_f = forward.state(x)
+            s_b, v_b, a_b = backward.state(y)
+            s_b, a_b = length - s_b, -a_b
+            tau = (a_b - a_f) / jerk
+            return (v_f + tau * (a_f + tau * jerk / 2.0) - v_b,
+                    s_f + tau * (v_f + tau * (a_f / 2.0 + tau * jerk / 6.0)) - s_b, tau)
+
+        def accept(x, y):
+            tau = residual(x, y)[2]
+            return (x, y, tau) if tau >= 0.0 else None
+
+        x_c = x
+        tau0 = max(residual(x, y)[2], 0.0)
+        x, y = min(max(x - tau0 / 2.0, 0.0), x_max), min(max(y - tau0 / 2.0, 0.0), y_max)
+        delta = 1e-7
+        for _ in range(40):
+            e_v, e_s, tau = residual(x, y)
+            if abs(e_v) < 1e-10 and abs(e_s) < 1e-12:
+                return accept(x, y)
+            dv_x, ds_x, _ = residual(x + delta, y)
+            dv_y, ds_y, _ = residual(x, y + delta)
+            j11, j12 = (dv_x - e_v) / delta, (dv_y - e_v) / delta
+            j21, j22 = (ds_x - e_s) / delta, (ds_y - e_s) / delta
+            det = j11 * j22 - j12 * j21
+            if det == 0.0:
+                return None
+            step_x = (j22 * e_v - j12 * e_s) / det
+            step_y = (j11 * e_s - j21 * e_v) / det
+            # Damped: a few milliseconds at most per iteration.
+            scale = min(1.0, 0.005 / max(abs(step_x), abs(step_y), 1e-300))
+            x = min(max(x - scale * step_x, 0.0), x_max)
+            y = min(max(y - scale * step_y, 0.0), y_max)
+
+        # Newton stalls where a scan has kinks (levelling off, cruising): bracket instead,
+        # y for s continuity at each x, then x for s' continuity.
+        def y_for(x):
+            y = _bracket_root(lambda y: residual(x, y)[1], 0.0, y_max, 1e-13)
+            return None if y is None else (y, residual(x, y)[0])
+
+        low, step = x_c, 0.002
+        end = y_for(x_c)
+        if end is None:
+            return None
+        while True:
+            low = max(low - step, 0.0)
+            start = y_for(low)
+            if start is not None and start[1] * end[1] <= 0.0:
+                break
+            if low <= 0.0:
+                return None
+            step *= 2.0
+        x = _bracket_root(lambda x: (y_for(x) or (0.0, math.nan))[1], low, x_c, 1e-11)
+        found = None if x is None else y_for(x)
+        return None if found is None else accept(x, found[0])
+
+    def _piece_check(self, start, duration, jerk):
+        """
+        Check a constant-jerk piece from ``start`` against the limits at 9 points.
+
+        Returns ``jerk`` if it is legal all along, the most aggressive legal
+        value otherwise (same sign, smaller), or None if no jerk can serve.
+        """
+        s, v, a = start
+        scanner = self.forward
+        worst = jerk
+        for x in np.linspace(0.0, duration, 9):
+            s1 = s + x * (v + x * (a / 2.0 + x * jerk / 6.0))
+            v1, a1 = v + x * (a + x * jerk / 2.0), a + x * jerk
+            kappa, _, cap = scanner.table.at(s1)
+            bounds = scanner.jerk_range(s1, v1, a1)
+            if (bounds is None or v1 < -1e-9 or v1 > min(cap, scanner.speed) * (1.0 + 1e-9)
+                    or a1 * a1 + (kappa * v1 * v1) ** 2 > scanner.accel ** 2 * (1.0 + 1e-6)):
+                return None
+            worst = max(worst, bounds[0]) if jerk < 0.0 else min(worst, bounds[1])
+        return worst if worst * jerk > 0.0 else None
+
+    def fallback(self, v_in, v_out):
+        """
+        Return (rows, entry, exit) of a slower but sure motion along the arc.
+
+        Ruckig pieces between ``_FALLBACK_PIECES`` + 1 knots, at rest
+        acceleration at each knot, with constant limits that hold on the
+        piece's stretch (:func:`_constant_limits`); knot speeds start at half
+        the ceiling around them and come down where a piece does not fit.
+        """
+        knots = np.linspace(0.0, self.length, _FALLBACK_PIECES + 1)
+        cells = np.minimum((knots / self.grid[1]).astype(int), self.grid.size - 1)
+        speeds = [0.5 * float(self.ceiling[cells[max(index - 1, 0)]:
+                                           cells[min(index + 1, _FALLBACK_PIECES)] + 1].min())
+                  for index in range(_FALLBACK_PIECES + 1)]
+        speeds[0], speeds[-1] = min(speeds[0], v_in), min(speeds[-1], v_out)
+        offset = float(self.path.segment_lengths[0])
+        pieces = [None] * _FALLBACK_PIECES
+        index, budget = 0, 20 * _FALLBACK_PIECES
+        while index < _FALLBACK_PIECES:
+            budget -= 1
+            if budget < 0:
+                raise LimitError('time-optimal profile: expected a motion along the arc within '
+                                 'the limits, got none')
+            top = max(speeds[index], speeds[index + 1])
+            bounds = _constant_limits(self.path, offset + knots[index],
+                                      offset + knots[index + 1], top, self.limits)
+            pieces[index] = None if bounds is None else _ruckig_rows(
+                (knots[index], speeds[index], 0.0), (knots[index + 1], speeds[index + 1], 0.0),
+                top, *bounds)
+            if pieces[index] is not None:
+                index += 1
+                continue
+            # Slow the faster end of the piece; redo the piece before if its end moved.
+            if speeds[index] >= speeds[index + 1]:
+                speeds[index] *= 0.7
+                index = max(index - 1, 0)
+            else:
+                speeds[index + 1] *= 0.7
+        rows = [row for piece in pieces for row in piece]
+        return rows, (speeds[0], 0.0), (speeds[-1], 0.0)
+
+
+def _bracket_root(function, low, high, tolerance):
+    """Return a root of ``function`` in [low, high] (Illinois), or None without a sign change."""
+    f_low, f_high = function(low), function(high)
+    if not (f_low * f_high <= 0.0):
+        return None
+    side = 0
+    for _ in range(100):
+        if high - low <= tolerance or f_low == f_high:
+            break
+        middle = (low * f_high - high * f_low) / (f_high - f_low)
+        f_middle = function(middle)
+        if not math.isfinite(f_middle):
+            return None
+        if f_middle * f_high > 0.0:
+            high, f_high = middle, f_middle
+            if side == -1:
+                f_low *= 0.5
+            side = -1
+        elif f_middle * f_low > 0.0:
+            low, f_low = middle, f_middle
+            if side == 1:
+                f_high *= 0.5
+            side = 1
+        else:
+            return middle
+    return low if abs(f_low) <= abs(f_high) else high
+
+
+def _optimal_motion(path, limits, speed_cap):
+    """Build the time-optimal profile (see :func:`time_motion`)."""
+    if path.arc is None:
+        return _vertical_motion(path, limits, speed_cap, 'time_optimal')
+    c1, arc_length, c2 = (float(value) for value in path.segment_lengths)
+    planner = _ArcPlanner(path, limits, speed_cap)
+    v_in = planner.end_speed(c1, True, speed_cap)
+    v_out = planner.end_speed(c2, False, speed_cap)
+    parts = None
+    for _ in range(_END_TRIES):
+        try:
+            arc = planner.solve(v_in, v_out)
+        except _NoMotion:
+            break
+        parts = _with_lines(path, limits, speed_cap, *arc)
+        if parts is not None:
+            break
+        # A line cannot reach the arc's entry (exit) state: ask for a slower one.
+        if _with_lines(path, limits, speed_cap, arc[0], arc[1], (0.0, 0.0)) is None:
+            v_in = _END_RETRY_FACTOR * min(v_in, arc[1][0])
+        else:
+            v_out = _END_RETRY_FACTOR * min(v_out, arc[2][0])
+    if parts is None:
+        parts = _with_lines(path, limits, speed_cap, *planner.fallback(v_in, v_out))
+    if parts is None:
+        raise LimitError('time-optimal profile: expected vertical segments that reach the '
+                         'arc within the limits, got none')
+    lift, arc_rows, descent, entry, exit_state = parts
+    pieces = _PieceList()
+    pieces.extend(lift)
+    pieces.extend(arc_rows, c1)
+    pieces.extend(descent)
+    law = pieces.law()
+    segments = np.array([_rows_duration(lift), _rows_duration(arc_rows),
+                         _rows_duration(descent)])
+    segments[1] = law.duration - segments[0] - segments[2]
+    return TimedMotion(path, 'time_optimal', law.duration, segments,
+                       entry[0] ** 2 * planner.kappa_end[0],
+                       exit_state[0] ** 2 * planner.kappa_end[1], None, law)
+
+
+def _with_lines(path, limits, speed_cap, arc_rows, entry, exit_state):
+    """Return (lift rows, arc rows, descent rows, entry, exit), or None if a line fails."""
+    c1, arc_length, _ = (float(value) for value in path.segment_lengths)
+    lift, descent = [], []
+    if c1 > 0.0:
+        lift = _line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), limits, speed_cap,
+                          0.0, c1)
+    elif entry[0] > 0.0 or entry[1] != 0.0:
+        lift = None
+    end = c1 + arc_length
+    if path.length > end:
+        descent = _line_rows((end, exit_state[0], exit_state[1]), (path.length, 0.0, 0.0),
+                             limits, speed_cap, end, path.length)
+    elif exit_state[0] > 0.0 or exit_state[1] != 0.0:
+        descent = None
+    if lift is None or descent is None:
+        return None
+    return lift, arc_rows, descent, entry, exit_state

@@ -1,0 +1,145 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Ruckig on one degree of freedom: time-optimal pieces along a straight or gently curved stretch.
+
+Ruckig's own error text is kept where it refuses a state (see :func:`_ruckig_rows`).
+"""
+
+import math
+
+import numpy as np
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
+
+from .errors import LimitError
+from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .motion import _PieceList, TimedMotion
+
+
+def _ruckig_rows(start, target, speed, accel, jerk):
+    """
+    Return the time-optimal 1-DoF pieces from ``start`` to ``target`` (s, s', s''), or None.
+
+    None when Ruckig finds nothing or the motion is not monotone (it would
+    overshoot and come back: the distance is too short for the states).
+    """
+    data = InputParameter(1)
+    data.current_position, data.current_velocity, data.current_acceleration = (
+        [value] for value in start)
+    data.target_position, data.target_velocity, data.target_acceleration = (
+        [value] for value in target)
+    data.max_velocity, data.max_acceleration, data.max_jerk = [speed], [accel], [jerk]
+    trajectory = Trajectory(1)
+    try:
+        if Ruckig(1).calculate(data, trajectory) != Result.Working:
+            return None
+    except RuckigError:
+        # Ruckig refuses states beyond its limits (e.g. a target acceleration above them).
+        return None
+    profile = trajectory.profiles[0][0]
+    rows = []
+    brake = profile.brake
+    for index in range(2):
+        if brake.t[index] > 0.0:
+            rows.append((brake.t[index], brake.p[index], brake.v[index], brake.a[index],
+                         brake.j[index]))
+    for index in range(7):
+        if profile.t[index] > 0.0:
+            rows.append((profile.t[index], profile.p[index], profile.v[index],
+                         profile.a[index], profile.j[index]))
+    for duration, _, v, a, j in rows:
+        # Smallest speed on the piece: at its ends or where s'' = 0 inside it.
+        ends = [v, v + a * duration + 0.5 * j * duration ** 2]
+        if j != 0.0 and 0.0 < -a / j < duration:
+            ends.append(v - 0.5 * a * a / j)
+        if min(ends) < -1e-9:
+            return None
+    return rows
+
+
+def _reach_speed(distance, accel, jerk):
+    """Return the largest speed reachable from rest over ``distance`` ending at s'' = 0."""
+    if distance <= 0.0:
+        return 0.0
+    # Without a constant-acceleration phase: distance = v sqrt(v / J).
+    speed = (distance * math.sqrt(jerk)) ** (2.0 / 3.0)
+    if speed <= accel * accel / jerk:
+        return speed
+    # With one: distance = v (v / A + A / J) / 2.
+    ratio = accel / jerk
+    return 0.5 * accel * (-ratio + math.sqrt(ratio * ratio + 8.0 * distance / accel))
+
+
+def _line_rows(start, target, limits, speed_cap, s_from, s_to):
+    """Return Ruckig pieces along a straight segment [s_from, s_to] (None if none fit)."""
+    speed = limits.max_speed * _SPEED_MARGIN
+    if speed_cap is not None and s_to > s_from:
+        speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
+            speed_cap, np.linspace(s_from, s_to, _LIMIT_SAMPLES)))))
+    return _ruckig_rows(start, target, speed, limits.max_accel * _ACCEL_MARGIN,
+                        limits.max_jerk * _JERK_MARGIN)
+
+
+def _vertical_motion(path, limits, speed_cap, profile):
+    """Time a pure vertical move: one straight segment from rest to rest."""
+    rows = _line_rows((0.0, 0.0, 0.0), (path.length, 0.0, 0.0), limits, speed_cap,
+                      0.0, path.length)
+    if rows is None:
+        raise LimitError('vertical move: expected Ruckig to find a rest-to-rest motion, '
+                         f'got none for {path.length:.6g} m')
+    pieces = _PieceList()
+    pieces.extend(rows)
+    law = pieces.law()
+    going_up = path.segment_lengths[0] > 0.0
+    segments = [law.duration, 0.0, 0.0] if going_up else [0.0, 0.0, law.duration]
+    return TimedMotion(path, profile, law.duration, np.array(segments), 0.0, 0.0, None, law)
+
+
+def _constant_limits(path, s_from, s_to, speed, limits):
+    """
+    Return (s'' limit, s''' limit) that keep the true limits on [s_from, s_to] at s' <= speed.
+
+    Conservative constants for a Ruckig piece along a curved stretch (worst
+    curvature and curvature rate of the stretch, worst case of every term);
+    None if there are none.
+    """
+    s = np.linspace(s_from, s_to, _LIMIT_SAMPLES)
+    bend = _bend_length(path)
+    if bend is not None and s_from < bend < s_to:
+        s = np.sort(np.append(s, bend))
+    samples = path.evaluate(s)
+    kappa = np.linalg.norm(samples.curvature, axis=1)
+    normal = samples.curvature / np.maximum(kappa, 1e-300)[:, None]
+    kappa = float(kappa.max())
+    kappa_s = float(np.abs(np.einsum('ij,ij->i', samples.curvature_rate, normal)).max())
+    accel, jerk = limits.max_accel * _ACCEL_MARGIN, limits.max_jerk * _JERK_MARGIN
+    if kappa * speed * speed >= accel:
+        return None
+    tangential = math.sqrt(accel ** 2 - (kappa * speed * speed) ** 2)
+    if kappa * speed > 0.0:
+        tangential = min(tangential, (0.5 * jerk - kappa_s * speed ** 3) / (3.0 * kappa * speed))
+    normal_jerk = kappa_s * speed ** 3 + 3.0 * kappa * speed * tangential
+    if tangential <= 0.0 or normal_jerk >= jerk:
+        return None
+    rate = math.sqrt(jerk ** 2 - normal_jerk ** 2) - kappa ** 2 * speed ** 3
+    return (tangential, rate) if rate > 0.0 else None
+
+
+def _bend_length(path):
+    """Return the path length [m] of the bend's tightest point, or None without an arc."""
+    bend = path.bend
+    if bend is None:
+        return None
+    return float(path.segment_lengths[0] + bend.s_from_t(bend.tightest_t))
