@@ -154,6 +154,9 @@ class TimedMotion:
     law: object = field(repr=False)
     time_scale: float = 1.0
     node_period: object = None
+    # Peaks (speed, acceleration, jerk) on the default samples, once sampled_norms has run: the
+    # final limit check and metrics() share one sample set; scaled() scales them.
+    _peaks: object = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         if not isinstance(self.path, PickPlacePath):
@@ -247,13 +250,39 @@ class TimedMotion:
         """
         period = require_range('sample_period', sample_period, 0.0, 0.1, low_open=True,
                                unit='s')
-        period = max(period, self.duration / _METRICS_SAMPLES)
-        speed, accel, jerk = _norms(self, _check_times(self, period))[1:]
+        if period == _CHECK_PERIOD:
+            if self._peaks is None:
+                self.sampled_norms()
+            speed, accel, jerk = self._peaks
+        else:
+            period = max(period, self.duration / _METRICS_SAMPLES)
+            speed, accel, jerk = (float(norm.max()) for norm in
+                                  _norms(self, _check_times(self, period))[1:])
         return {'duration': float(self.duration),
                 'segment_durations': [float(value) for value in self.segment_durations],
-                'peak_speed': float(speed.max()), 'peak_accel': float(accel.max()),
-                'peak_jerk': float(jerk.max()), 'accel_jump_T1': float(self.accel_jump_T1),
+                'peak_speed': speed, 'peak_accel': accel, 'peak_jerk': jerk,
+                'accel_jump_T1': float(self.accel_jump_T1),
                 'accel_jump_T2': float(self.accel_jump_T2)}
+
+    def sampled_norms(self):
+        """
+        Return the motion sampled as :meth:`metrics` samples it by default.
+
+        Every ``_CHECK_PERIOD`` (fewer samples where the motion would need more
+        than ``_METRICS_SAMPLES``) and on both sides of every bound of the
+        law's constant-jerk pieces. The peaks are kept for :meth:`metrics`.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            (s [m], |velocity| [m/s], |acceleration| [m/s**2], |jerk|
+            [m/s**3]), each of shape (N,).
+
+        """
+        norms = _norms(self, _check_times(self, max(_CHECK_PERIOD,
+                                                    self.duration / _METRICS_SAMPLES)))
+        object.__setattr__(self, '_peaks', tuple(float(norm.max()) for norm in norms[1:]))
+        return norms
 
     def jerk_steps(self):
         """
@@ -298,13 +327,20 @@ class TimedMotion:
 
         """
         factor = require_range('factor', factor, 1.0, 1e6)
-        return replace(self, duration=self.duration * factor,
-                       segment_durations=self.segment_durations * factor,
-                       accel_jump_T1=self.accel_jump_T1 / factor ** 2,
-                       accel_jump_T2=self.accel_jump_T2 / factor ** 2,
-                       time_scale=self.time_scale * factor,
-                       node_period=None if self.node_period is None
-                       else self.node_period * factor)
+        scaled = replace(self, duration=self.duration * factor,
+                         segment_durations=self.segment_durations * factor,
+                         accel_jump_T1=self.accel_jump_T1 / factor ** 2,
+                         accel_jump_T2=self.accel_jump_T2 / factor ** 2,
+                         time_scale=self.time_scale * factor,
+                         node_period=None if self.node_period is None
+                         else self.node_period * factor)
+        if self._peaks is not None:
+            # The same samples, slowed down: the peaks scale exactly (their samples are
+            # ``factor`` times further apart in time, no sparser along the path).
+            speed, accel, jerk = self._peaks
+            object.__setattr__(scaled, '_peaks',
+                               (speed / factor, accel / factor ** 2, jerk / factor ** 3))
+        return scaled
 
 
 def _cartesian(path, s, v, a, j):

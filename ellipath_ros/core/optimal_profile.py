@@ -101,7 +101,7 @@ class _EndTooFast(Exception):
 class _ArcTable:
     """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
 
-    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap')
+    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at')
 
     def __init__(self, length, kappa, kappa_s, cap):
         # Lists, not arrays: the scans read single values, which lists serve faster.
@@ -109,21 +109,30 @@ class _ArcTable:
         self.step = length / (len(kappa) - 1)
         self.last = len(kappa) - 2
         self.kappa, self.kappa_s, self.cap = kappa, kappa_s, cap
+        self.at = _lookup(self.step, self.last, kappa, kappa_s, cap)
 
     def backwards(self):
         """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
         return _ArcTable(self.length, self.kappa[::-1], [-value for value in self.kappa_s[::-1]],
                          self.cap[::-1])
 
-    def at(self, s):
-        """Return (kappa, dkappa/ds, speed cap) at arc length ``s``."""
-        x = s / self.step
-        index = min(max(int(x), 0), self.last)
+
+def _lookup(step, last, kappa, kappa_s, cap):
+    """Return at(s) -> (kappa, dkappa/ds, speed cap) at arc length s, read from the lists."""
+    # A closure over plain lists: the scans call it several times per step, and local names
+    # are the cheapest reads Python has.
+    def at(s):
+        x = s / step
+        index = int(x)
+        if index < 0:
+            index = 0
+        elif index > last:
+            index = last
         fraction = x - index
-        kappa, kappa_s, cap = self.kappa, self.kappa_s, self.cap
-        return (kappa[index] + fraction * (kappa[index + 1] - kappa[index]),
-                kappa_s[index] + fraction * (kappa_s[index + 1] - kappa_s[index]),
-                cap[index])
+        low, low_s = kappa[index], kappa_s[index]
+        return (low + fraction * (kappa[index + 1] - low),
+                low_s + fraction * (kappa_s[index + 1] - low_s), cap[index])
+    return at
 
 
 class _Scan:
@@ -205,10 +214,16 @@ class _Scanner:
         self.accel = limits.max_accel * _ACCEL_MARGIN
         self.jerk = limits.max_jerk * _JERK_MARGIN
         self.factor = [1.0] * (len(table.kappa) + 1)
+        # The scan's inner loop reads these thousands of times per leg: plain attributes.
+        self._at = table.at
+        self._accel_squared = self.accel ** 2
+        self._jerk_squared = self.jerk ** 2
+        self._cell = table.step
+        self._last_factor = len(self.factor) - 1
 
     def jerk_range(self, s, v, a):
         """Return the (lowest, highest) s''' keeping |jerk| <= limit at (s, v, a), or None."""
-        kappa, kappa_s, _ = self.table.at(s)
+        kappa, kappa_s, _ = self._at(s)
         return self._jerk_range(kappa, kappa_s, v, a)
 
     def _jerk_range(self, kappa, kappa_s, v, a):
@@ -217,8 +232,21 @@ class _Scanner:
         normal = kappa_s * v3 + 3.0 * kappa * v * a
         if abs(normal) >= self.jerk:
             return None
-        room = math.sqrt(self.jerk ** 2 - normal * normal)
+        room = math.sqrt(self._jerk_squared - normal * normal)
         return kappa * kappa * v3 - room, kappa * kappa * v3 + room
+
+    def _legal(self, s, v, a, h, jerk):
+        """Return whether ``jerk`` held for ``h`` from (s, v, a) is legal at the step's end."""
+        kappa, kappa_s, _ = self._at(s + h * (v + h * (a / 2.0 + h * jerk / 6.0)))
+        v, a = v + h * (a + h * jerk / 2.0), a + h * jerk
+        # _jerk_range at the end state, written out: this runs several times per step.
+        v3 = v * v * v
+        normal = kappa_s * v3 + 3.0 * kappa * v * a
+        if abs(normal) >= self.jerk:
+            return False
+        room = math.sqrt(self._jerk_squared - normal * normal)
+        middle = kappa * kappa * v3
+        return middle - room - 1e-9 <= jerk <= middle + room + 1e-9
 
     def _target(self, s, v, kappa, kappa_s, cap):
         """
@@ -236,19 +264,19 @@ class _Scanner:
         centripetal = kappa * kappa * v ** 3
         if normal >= self.accel or centripetal >= self.jerk:
             return None
-        tangential = math.sqrt(self.accel ** 2 - normal * normal)
+        tangential = math.sqrt(self._accel_squared - normal * normal)
         target, lowest = tangential, -tangential
         if kappa * v > 0.0:
-            share = _NORMAL_JERK_SHARE * math.sqrt(self.jerk ** 2 - centripetal ** 2)
+            share = _NORMAL_JERK_SHARE * math.sqrt(self._jerk_squared - centripetal ** 2)
             target = min(target, (share - kappa_s * v ** 3) / (3.0 * kappa * v))
             lowest = max(lowest, (-share - kappa_s * v ** 3) / (3.0 * kappa * v))
-        factor = self.factor[min(max(int(s / self.table.step), 0), len(self.factor) - 1)]
+        factor = self.factor[min(max(int(s / self._cell), 0), self._last_factor)]
         target = factor * target if target > 0.0 else target - (1.0 - factor) * self.accel
         return target if target >= lowest else None
 
     def step(self, s, v, a):
         """Take one scan step from state (s, v, a): (h, s, v, a, jerk) or a failure string."""
-        at = self.table.at
+        at = self._at
         kappa, kappa_s, cap = at(s)
         bounds = self._jerk_range(kappa, kappa_s, v, a)
         speed = min(self.speed, cap)
@@ -268,7 +296,7 @@ class _Scanner:
         if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
             jerk, a = 0.0, 0.0
             # Cruising changes nothing but the place: up to half a table cell per step.
-            h = max(h, 0.5 * self.table.step / v)
+            h = max(h, 0.5 * self._cell / v)
         elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
             jerk, h = self._level_off(v, a, goal, h, level)
         else:
@@ -322,16 +350,13 @@ class _Scanner:
 
     def _end_feasible(self, s, v, a, jerk, lowest, h):
         """Return ``jerk``, or the largest one in [lowest, jerk] legal at the step's end."""
-        def legal(value):
-            bounds = self.jerk_range(s + h * (v + h * (a / 2.0 + h * value / 6.0)),
-                                     v + h * (a + h * value / 2.0), a + h * value)
-            return bounds is not None and bounds[0] - 1e-9 <= value <= bounds[1] + 1e-9
-        if legal(jerk):
+        legal = self._legal
+        if legal(s, v, a, h, jerk):
             return jerk
         low, high, best = lowest, jerk, None
         for _ in range(12):
             middle = 0.5 * (low + high)
-            if legal(middle):
+            if legal(s, v, a, h, middle):
                 best, low = middle, middle
             else:
                 high = middle

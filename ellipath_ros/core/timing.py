@@ -20,9 +20,9 @@ Two profiles (:func:`time_motion`): ``curvature``, the paper's (section 2.3,
 the paper (:mod:`~ellipath_ros.core.optimal_profile`). Both return a
 :class:`~ellipath_ros.core.motion.TimedMotion`. The constructions aim at a
 margin below the limits (:mod:`~ellipath_ros.core.limits`); the result is then
-sampled (every ``_SAFETY_CHECK_PERIOD``, at most ``_SAFETY_CHECK_SAMPLES``
-samples) and, should a limit or the speed cap be broken there after all,
-slowed down uniformly in time until it is not.
+sampled (on the samples of its metrics, every 0.1 ms) and, should a limit or
+the speed cap be broken there after all, slowed down uniformly in time until
+it is not.
 """
 
 import math
@@ -36,8 +36,9 @@ from .limits import _cap_values, CartesianLimits
 from .motion import _check_times, _norms, PROFILES
 from .optimal_profile import _optimal_motion
 
-# Sample period [s] and most samples of the final limit check; when it finds a limit broken,
-# it measures again this many times finer and adds this slack to the slow-down.
+# When the final limit check finds a limit broken, it measures again with samples this far
+# apart [s] divided by _SAFETY_REFINE (at most that many times _SAFETY_CHECK_SAMPLES) and adds
+# _SAFETY_SLACK to the slow-down.
 _SAFETY_CHECK_PERIOD = 2.5e-4
 _SAFETY_CHECK_SAMPLES = 4000
 _SAFETY_REFINE = 8
@@ -48,22 +49,25 @@ def _within_limits(motion, limits, speed_cap):
     """
     Return ``motion``, slowed down uniformly if sampling finds a limit broken.
 
-    A construction that breaks a limit has missed something sharp (a bend
-    tighter than its tables): the factor is then measured on a grid
-    ``_SAFETY_REFINE`` times finer and given ``_SAFETY_SLACK`` on top, for what
-    falls between even those samples.
+    The motion is sampled as its metrics are (:meth:`TimedMotion.sampled_norms`,
+    which keeps the peaks for them). A construction that breaks a limit has
+    missed something sharp (a bend tighter than its tables): the factor is then
+    measured on a grid of period ``_SAFETY_CHECK_PERIOD / _SAFETY_REFINE`` (at
+    most ``_SAFETY_CHECK_SAMPLES * _SAFETY_REFINE`` samples) and given
+    ``_SAFETY_SLACK`` on top, for what falls between even those samples.
     """
-    period = max(_SAFETY_CHECK_PERIOD, motion.duration / _SAFETY_CHECK_SAMPLES)
-    factor = _excess(motion, limits, speed_cap, period)
+    factor = _excess(motion.sampled_norms(), limits, speed_cap)
     if factor <= 1.0:
         return motion
-    factor = max(factor, _excess(motion, limits, speed_cap, period / _SAFETY_REFINE))
+    period = max(_SAFETY_CHECK_PERIOD, motion.duration / _SAFETY_CHECK_SAMPLES)
+    factor = max(factor, _excess(_norms(motion, _check_times(motion, period / _SAFETY_REFINE)),
+                                 limits, speed_cap))
     return motion.scaled(factor * (1.0 + _SAFETY_SLACK))
 
 
-def _excess(motion, limits, speed_cap, period):
-    """Return the uniform slow-down that brings the sampled motion within the limits (>= 0)."""
-    s, speed, accel, jerk = _norms(motion, _check_times(motion, period))
+def _excess(norms, limits, speed_cap):
+    """Return the uniform slow-down that brings sampled norms within the limits (>= 0)."""
+    s, speed, accel, jerk = norms
     factor = max(float(speed.max()) / limits.max_speed,
                  math.sqrt(float(accel.max()) / limits.max_accel),
                  float(jerk.max() / limits.max_jerk) ** (1.0 / 3.0))
