@@ -392,10 +392,28 @@ class EllipticArc(_ParametricArc):
         return np.asarray(theta, dtype=float) - self.theta_T2
 
     def radius_of_curvature(self, theta):
-        """Return rho(theta) by the paper's eq. (34), shape of ``theta`` [m]."""
+        """Return rho(theta) = sigma**3 / (a b), the paper's eq. (34), shape of ``theta`` [m]."""
         theta = np.asarray(theta, dtype=float)
         a, b = self.a, self.b
         return (a * a * np.sin(theta) ** 2 + b * b * np.cos(theta) ** 2) ** 1.5 / (a * b)
+
+    def sigma(self, theta):
+        """
+        Return sigma = |dP/dtheta| and its first two derivatives by theta, each shaped as theta.
+
+        In the paper's parameter, sigma = sqrt(a**2 sin**2 theta + b**2 cos**2
+        theta) (the speed of the ellipse in theta, equal to |dP/dt|), so
+        sigma' = (a**2 - b**2) sin theta cos theta / sigma and
+        sigma'' = ((a**2 - b**2) cos 2 theta - sigma'**2) / sigma [m/rad, m/rad**2,
+        m/rad**3]; the radius of curvature is sigma**3 / (a b).
+        """
+        theta = np.asarray(theta, dtype=float)
+        spread = self.a * self.a - self.b * self.b
+        sin_theta, cos_theta = np.sin(theta), np.cos(theta)
+        sigma = np.sqrt(self.a * self.a * sin_theta ** 2 + self.b * self.b * cos_theta ** 2)
+        sigma_1 = spread * sin_theta * cos_theta / sigma
+        sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
+        return sigma, sigma_1, sigma_2
 
     # -- lengths -------------------------------------------------------------------
     @property

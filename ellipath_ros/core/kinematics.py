@@ -551,9 +551,9 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
     points, velocities, accelerations : array_like, shape (N, 3)
         TCP positions [m], velocities [m/s] and accelerations [m/s^2].
     geometry : DeltaGeometry
-        Robot dimensions and joint position limits.
+        The robot's dimensions and joint position limits.
     name : str
-        Name of ``points`` in error messages.
+        What ``points`` are called in error messages.
 
     Returns
     -------
