@@ -480,6 +480,19 @@ def _spaced(times, added):
     return np.array(merged)
 
 
+def _with_points(trajectory, motion, geometry, times):
+    """Return ``trajectory`` with points at ``times`` (its own and new ones, sorted)."""
+    new = ~np.isin(times, trajectory.time_from_start)
+    if not new.any():
+        return trajectory
+    added = knots_at(motion, geometry, times[new], trajectory.joint_names)
+    order = np.argsort(np.concatenate((trajectory.time_from_start, added.time_from_start)),
+                       kind='stable')
+    return JointTrajectoryData(trajectory.joint_names, *(
+        np.concatenate((getattr(trajectory, name), getattr(added, name)))[order]
+        for name in ('time_from_start', 'positions', 'velocities', 'accelerations')))
+
+
 def executed_bounds(config):
     """
     Return what the executed peaks must stay below, in the order of ``EXECUTED_KEYS``.
@@ -539,7 +552,7 @@ def _joint_points(motion, config, bounds):
             start, end = times[index], times[index + 1]
             inside = steps[(steps > start) & (steps < end)]
             added.extend(inside if inside.size else [0.5 * (start + end)])
-        trajectory = knots_at(motion, geometry, _spaced(times, added), config.joint_names)
+        trajectory = _with_points(trajectory, motion, geometry, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
     # The added points only bring the interpolation closer to the motion: the deviation
     # measured on the knots' own check grids still bounds it.
