@@ -17,11 +17,11 @@
 import functools
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.joint_trajectory import minimal_knots, quintic_interpolate
+from ellipath_ros.core.joint_trajectory import executed_peaks, minimal_knots
+from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.limits import CartesianLimits
-from ellipath_ros.core.planner import (
-    EXECUTED_JERK_SHARE, executed_peaks, plan_transfer, PlannerConfig)
+from ellipath_ros.core.planner import EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import _within_limits, time_motion
 import numpy as np
 

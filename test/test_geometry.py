@@ -17,7 +17,8 @@ import math
 
 from ellipath_ros.core.errors import DegenerateGeometryError, InvalidInputError
 from ellipath_ros.core.geometry import (
-    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi, plan_path)
+    arc_for_policy, ArcPolicy, blend_arc, conjugate_k_from_phi, EllipticArc, paper_phi,
+    plan_path)
 from ellipath_ros.paper.equations import paper_apex, paper_axes
 import numpy as np
 import pytest
@@ -302,3 +303,27 @@ def test_needle_thin_arcs_are_rejected_with_a_remedy():
 def test_coordinates_beyond_any_workspace_are_rejected():
     with pytest.raises(InvalidInputError, match=r'pick: expected coordinates within \+-10 m'):
         plan_path([1e308, 0.0, -0.8], [0.1, 0.0, -0.8])
+
+
+def test_t_from_s_inverts_the_arc_length_on_thin_and_bent_arcs():
+    """The table's interpolation against the arc length by quadrature (s_from_t)."""
+    thin = EllipticArc(0.15, 0.02, 0.004)  # smallest radius about 0.1 mm
+    bent = blend_arc(EllipticArc(0.15, 0.05, 0.04))
+    for arc in (thin, bent):
+        s = np.linspace(0.0, arc.length, 4001)
+        t = arc.t_from_s(s)
+        assert np.all(np.diff(t) < 0.0)
+        assert np.abs(arc.s_from_t(t) - s).max() < 1e-9
+
+
+def test_sigma_is_the_speed_in_theta_and_its_derivatives():
+    arc = EllipticArc(0.15, 0.03, 0.05)
+    theta = np.linspace(-3.0, 3.0, 13)
+    sigma, sigma_1, sigma_2 = arc.sigma(theta)
+    np.testing.assert_allclose(sigma, arc.speed(arc.t_from_theta(theta)), rtol=1e-14)
+    step = 1e-4
+    ahead, behind = arc.sigma(theta + step)[0], arc.sigma(theta - step)[0]
+    np.testing.assert_allclose(sigma_1, (ahead - behind) / (2 * step), atol=1e-9)
+    np.testing.assert_allclose(sigma_2, (ahead - 2 * sigma + behind) / step ** 2, atol=1e-6)
+    np.testing.assert_allclose(arc.radius_of_curvature(theta), sigma ** 3 / (arc.a * arc.b),
+                               rtol=1e-12)

@@ -25,9 +25,11 @@ from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import joint_accelerations
+from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import joint_velocities
 from ellipath_ros.core.kinematics import JointLimits
 from ellipath_ros.core.kinematics import reachable
+from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 import pytest
 
@@ -270,3 +272,43 @@ def test_stretched_arm_is_a_singularity():
     with pytest.raises(UnreachableError, match=r'^points\[1\]'):
         joint_accelerations(points, q, np.ones((2, 3)), np.ones((2, 3)), np.ones((2, 3)),
                             GEOMETRY)
+
+
+def test_tcp_derivatives_match_differences_of_forward_kinematics():
+    """Exact TCP velocity, acceleration and jerk of a joint motion, against FK differences."""
+    rng = np.random.default_rng(7)
+    q0 = inverse_kinematics(np.array([0.1, -0.05, -0.85]), GEOMETRY)
+    # A quartic joint motion with rates of a fast pick: q_dot ~ 5 rad/s, q_ddot ~ 100 rad/s^2.
+    rates = rng.normal(size=(4, 3)) * np.array([5.0, 100.0, 3e3, 3e4])[:, np.newaxis]
+
+    def joints(t, order=0):
+        powers = [t ** k / math.factorial(k) for k in range(5)]
+        value = q0 if order == 0 else 0.0
+        return value + sum(rates[k - 1] * powers[k - order] for k in range(max(order, 1), 5))
+
+    times = np.array([0.0, 0.013, 0.04])
+    p, v, a, j = tcp_derivatives(*(np.array([joints(t, order) for t in times])
+                                   for order in range(4)), GEOMETRY)
+    h = 5e-5
+    for index, t in enumerate(times):
+        at = [forward_kinematics(joints(t + k * h), GEOMETRY) for k in (-2, -1, 0, 1, 2)]
+        differences = ((at[3] - at[1]) / (2 * h), (at[3] - 2 * at[2] + at[1]) / h ** 2,
+                       (at[4] - 2 * at[3] + 2 * at[1] - at[0]) / (2 * h ** 3))
+        np.testing.assert_allclose(p[index], at[2], atol=1e-12)
+        for exact, difference in zip((v[index], a[index], j[index]), differences):
+            # The differences are good to ~1e-4 of the value at this step.
+            assert np.abs(exact - difference).max() <= 1e-3 * np.abs(difference).max()
+
+
+def test_joint_motion_is_inverse_kinematics_and_its_rates():
+    points = np.array(GOOD)
+    velocities = np.array([[0.5, -1.0, 0.2], [2.0, 0.0, -1.0], [0.0, 1.5, 1.5]])
+    accelerations = np.array([[10.0, 0.0, -30.0], [-5.0, 20.0, 0.0], [40.0, -10.0, 5.0]])
+    q, qdot, qddot = joint_motion(points, velocities, accelerations, GEOMETRY)
+    np.testing.assert_array_equal(q, inverse_kinematics(points, GEOMETRY))
+    np.testing.assert_allclose(qdot, joint_velocities(points, q, velocities, GEOMETRY))
+    np.testing.assert_allclose(qddot, joint_accelerations(points, q, velocities, accelerations,
+                                                          qdot, GEOMETRY))
+    with pytest.raises(UnreachableError, match=r'^points\[1\]'):
+        joint_motion([[0.0, 0.0, -0.8], [0.0, 0.0, 0.1]], velocities[:2], accelerations[:2],
+                     GEOMETRY)

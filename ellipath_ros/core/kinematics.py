@@ -359,27 +359,38 @@ def _cross(a, b):
 
 
 def _forward(q, geometry, name, strict=True):
-    """Vectorised three-sphere intersection; see :func:`forward_kinematics`."""
-    cos_q = np.cos(q)[:, :, np.newaxis]
-    sin_q = np.sin(q)[:, :, np.newaxis]
-    radial = geometry.base_radius - geometry.effector_radius + geometry.upper_arm * cos_q
-    centres = radial * _RADIAL - geometry.upper_arm * sin_q * _UP  # (N, 3, 3)
-    a = centres[:, 0] - centres[:, 2]
-    b = centres[:, 1] - centres[:, 2]
-    normal = _cross(a, b)
-    normal_sq = np.einsum('ij,ij->i', normal, normal)
-    a_sq = np.einsum('ij,ij->i', a, a)
-    b_sq = np.einsum('ij,ij->i', b, b)
+    """
+    Vectorised three-sphere intersection; see :func:`forward_kinematics`.
+
+    Written per coordinate on arrays of shape (N,): the sphere centres have
+    fixed azimuths, so no (N, 3, 3) temporaries are needed.
+    """
+    upper = geometry.upper_arm
+    radial = geometry.base_radius - geometry.effector_radius + upper * np.cos(q)  # (N, 3)
+    height = -upper * np.sin(q)
+    # Centre i = (radial_i cos az_i, radial_i sin az_i, height_i); a = c0 - c2, b = c1 - c2.
+    cx = radial * _RADIAL[:, 0]
+    cy = radial * _RADIAL[:, 1]
+    ax, ay, az = cx[:, 0] - cx[:, 2], cy[:, 0] - cy[:, 2], height[:, 0] - height[:, 2]
+    bx, by, bz = cx[:, 1] - cx[:, 2], cy[:, 1] - cy[:, 2], height[:, 1] - height[:, 2]
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    normal_sq = nx * nx + ny * ny + nz * nz
+    a_sq = ax * ax + ay * ay + az * az
+    b_sq = bx * bx + by * by + bz * bz
     # Collinear centres leave the intersection undefined (a x b vanishes).
     collinear = normal_sq <= (1e-12 * np.sqrt(a_sq * b_sq)) ** 2
     safe_sq = np.where(collinear, 1.0, normal_sq)
-    to_centre = _cross(a_sq[:, np.newaxis] * b - b_sq[:, np.newaxis] * a, normal)
-    to_centre /= 2.0 * safe_sq[:, np.newaxis]
-    height_sq = geometry.forearm ** 2 - np.einsum('ij,ij->i', to_centre, to_centre)
-    unit = normal / np.sqrt(safe_sq)[:, np.newaxis]
-    unit *= np.where(unit[:, 2] < 0.0, -1.0, 1.0)[:, np.newaxis]  # point it up
-    points = (centres[:, 2] + to_centre
-              - np.sqrt(np.maximum(height_sq, 0.0))[:, np.newaxis] * unit)
+    # to_centre = ((|a|^2 b - |b|^2 a) x n) / (2 |n|^2): from centre 2 to the circumcentre.
+    ux, uy, uz = a_sq * bx - b_sq * ax, a_sq * by - b_sq * ay, a_sq * bz - b_sq * az
+    scale = 0.5 / safe_sq
+    tx, ty, tz = ((uy * nz - uz * ny) * scale, (uz * nx - ux * nz) * scale,
+                  (ux * ny - uy * nx) * scale)
+    height_sq = geometry.forearm ** 2 - (tx * tx + ty * ty + tz * tz)
+    # Unit normal pointing up, times the distance from the circumcentre down to the effector.
+    down = np.sqrt(np.maximum(height_sq, 0.0)) / np.sqrt(safe_sq)
+    down = np.where(nz < 0.0, -down, down)
+    points = np.stack((cx[:, 2] + tx - down * nx, cy[:, 2] + ty - down * ny,
+                       height[:, 2] + tz - down * nz), axis=1)
     bad = collinear | (height_sq < 0.0) | (points[:, 2] >= 0.0)
     if not strict:
         points[bad] = np.nan
@@ -475,7 +486,7 @@ def joint_velocities(points, q, velocities, geometry, *, name='points'):
         points, q, (velocities,), (name, 'q', 'velocities'))
     forearm, d_elbow, _ = _arm_vectors(points, q, geometry)
     diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
-    qdot = np.einsum('nij,nj->ni', forearm, velocities) / diagonal
+    qdot = _velocity_rates(forearm, diagonal, velocities)
     return qdot[0] if single else qdot
 
 
@@ -522,12 +533,75 @@ def joint_accelerations(points, q, velocities, accelerations, qdot, geometry, *,
         (name, 'q', 'velocities', 'accelerations', 'qdot'))
     forearm, d_elbow, dd_elbow = _arm_vectors(points, q, geometry)
     diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
+    qddot = _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities,
+                                accelerations, qdot)
+    return qddot[0] if single else qddot
+
+
+def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
+    """
+    Joint positions, velocities and accelerations of a TCP motion, in one pass.
+
+    The same as :func:`inverse_kinematics`, :func:`joint_velocities` and
+    :func:`joint_accelerations` in turn, with the inputs checked and the arm
+    vectors computed once.
+
+    Parameters
+    ----------
+    points, velocities, accelerations : array_like, shape (N, 3)
+        TCP positions [m], velocities [m/s] and accelerations [m/s^2].
+    geometry : DeltaGeometry
+        The robot's dimensions and joint position limits.
+    name : str
+        What ``points`` are called in error messages.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``q`` [rad], ``q_dot`` [rad/s] and ``q_ddot`` [rad/s^2], each (N, 3).
+
+    Raises
+    ------
+    InvalidInputError
+        Wrong shapes or non-finite entries.
+    UnreachableError
+        As :func:`inverse_kinematics`, or a pose at an IK singularity.
+
+    """
+    points, single = _as_rows(name, points)
+    converted = []
+    for extra, extra_name in ((velocities, 'velocities'), (accelerations, 'accelerations')):
+        array, _ = _as_rows(extra_name, extra)
+        _same_shape(extra_name, array, points, name)
+        converted.append(array)
+    velocities, accelerations = converted
+    q, discriminant, u, w = _solve_ik(points, geometry)
+    failure = _ik_failure(points, geometry, q, discriminant, u, w, name)
+    if failure is not None:
+        raise failure
+    forearm, d_elbow, dd_elbow = _arm_vectors(points, q, geometry)
+    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
+    qdot = _velocity_rates(forearm, diagonal, velocities)
+    qddot = _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities,
+                                accelerations, qdot)
+    if single:
+        return q[0], qdot[0], qddot[0]
+    return q, qdot, qddot
+
+
+def _velocity_rates(forearm, diagonal, velocities):
+    """Return q_dot = (s_i . p_dot) / (s_i . b_i), (N, 3)."""
+    return np.einsum('nij,nj->ni', forearm, velocities) / diagonal
+
+
+def _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities, accelerations,
+                        qdot):
+    """Return q_ddot; see :func:`joint_accelerations`."""
     forearm_rate = velocities[:, np.newaxis, :] - d_elbow * qdot[:, :, np.newaxis]
     numerator = (np.einsum('nij,nj->ni', forearm, accelerations)
                  + np.einsum('nij,nij->ni', forearm_rate, forearm_rate)
                  - np.einsum('nij,nij->ni', forearm, dd_elbow) * qdot * qdot)
-    qddot = numerator / diagonal
-    return qddot[0] if single else qddot
+    return numerator / diagonal
 
 
 def cartesian_velocities(q, qdot, geometry, *, name='q'):
@@ -572,3 +646,88 @@ def cartesian_velocities(q, qdot, geometry, *, name='q'):
     rhs = np.einsum('nij,nij->ni', forearm, d_elbow) * qdot_array
     velocities = np.linalg.solve(forearm, rhs[:, :, np.newaxis])[:, :, 0]
     return velocities[0] if single else velocities
+
+
+def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
+    """
+    TCP position, velocity, acceleration and jerk of a joint motion, exactly (no differences).
+
+    Differentiating the loop constraint ``|s_i|^2 = L2^2`` of arm i once, twice and three
+    times (``s_i`` the forearm vector, ``b_i``, ``c_i`` and ``-b_i`` the first three
+    derivatives of the elbow by ``q_i``) gives three linear systems with the same matrix
+    ``A`` (rows ``s_i``):
+    ``s_i . p_dot = (s_i . b_i) q_dot_i``,
+    ``s_i . p_ddot = s_i . (c_i q_dot_i^2 + b_i q_ddot_i) - |s_dot_i|^2`` and
+    ``s_i . p_dddot = s_i . (-b_i q_dot_i^3 + 3 c_i q_dot_i q_ddot_i + b_i q_dddot_i)
+    - 3 s_dot_i . s_ddot_i``, solved with ``A^-1`` from cross products.
+
+    Parameters
+    ----------
+    q, qdot, qddot, qdddot : numpy.ndarray, shape (N, 3)
+        Joint positions [rad] and their first three time derivatives.
+    geometry : DeltaGeometry
+        Robot dimensions.
+    name : str
+        Name of ``q`` in error messages.
+    strict : bool
+        If False, rows that cannot be assembled, or are at a direct-kinematics
+        singularity (where the rates are undefined), come back as NaN instead of raising.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Position [m], velocity [m/s], acceleration [m/s^2] and jerk [m/s^3], each (N, 3).
+
+    Raises
+    ------
+    UnreachableError
+        With ``strict``: as :func:`forward_kinematics`, or a pose where the forearms are
+        coplanar (``|det A| / L2^3`` below 1e-6).
+
+    """
+    q = np.asarray(q, dtype=float)
+    points = _forward(q, geometry, name, strict)
+    upper = geometry.upper_arm
+    cos_q, sin_q = np.cos(q), np.sin(q)  # (N, 3): sample, arm
+    ex, ey = _RADIAL[:, 0], _RADIAL[:, 1]
+    # Forearm s = p + r e - B (B the elbow), b = dB/dq and c = d2B/dq2, per coordinate.
+    reach = geometry.effector_radius - geometry.base_radius - upper * cos_q
+    s = (points[:, 0:1] + reach * ex, points[:, 1:2] + reach * ey,
+         points[:, 2:3] + upper * sin_q)
+    b = (-upper * sin_q * ex, -upper * sin_q * ey, -upper * cos_q)
+    c = (-upper * cos_q * ex, -upper * cos_q * ey, upper * sin_q)
+    # Columns of A^-1 (A has the rows s_0, s_1, s_2) times det A: s_1 x s_2, s_2 x s_0, s_0 x s_1.
+    columns = [_cross_of(s, first, second) for first, second in ((1, 2), (2, 0), (0, 1))]
+    determinant = sum(s[axis][:, 0] * columns[0][axis] for axis in range(3))
+    singular = np.abs(determinant) < _SINGULARITY_TOLERANCE * geometry.forearm ** 3
+    if strict and singular.any():
+        index = int(np.argmax(singular))
+        raise _unreachable(
+            f'{name}[{index}]: expected joint angles away from singularities, got '
+            f'{_fmt(q[index])} rad where the forearms are coplanar', index)
+    inverse_det = 1.0 / np.where(singular, np.nan, determinant)
+
+    def solve(rhs):
+        return np.stack([(rhs[:, 0] * columns[0][axis] + rhs[:, 1] * columns[1][axis]
+                          + rhs[:, 2] * columns[2][axis]) * inverse_det
+                         for axis in range(3)], axis=1)
+
+    def dot(first, second):
+        return first[0] * second[0] + first[1] * second[1] + first[2] * second[2]
+
+    s_b, s_c = dot(s, b), dot(s, c)
+    velocity = solve(s_b * qdot)
+    s_rate = tuple(velocity[:, axis:axis + 1] - b[axis] * qdot for axis in range(3))
+    acceleration = solve(s_c * qdot * qdot + s_b * qddot - dot(s_rate, s_rate))
+    s_accel = tuple(acceleration[:, axis:axis + 1] - c[axis] * qdot * qdot - b[axis] * qddot
+                    for axis in range(3))
+    jerk = solve(s_b * (qdddot - qdot ** 3) + 3.0 * s_c * qdot * qddot
+                 - 3.0 * dot(s_rate, s_accel))
+    return points, velocity, acceleration, jerk
+
+
+def _cross_of(s, first, second):
+    """Return the coordinates of s_first x s_second, s given per coordinate as (N, 3) arms."""
+    x, y, z = (value[:, first] for value in s)
+    u, v, w = (value[:, second] for value in s)
+    return (y * w - z * v, z * u - x * w, x * v - y * u)

@@ -22,7 +22,9 @@ Both take a :class:`PlannerConfig`, which the CLI and the node build from the
 same flat parameter names (``PlannerConfig.from_flat``).
 """
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+import functools
 import math
 import time
 
@@ -32,12 +34,12 @@ from .errors import InvalidInputError, LimitError, require_point, require_range
 from .geometry import (
     ArcPolicy, DEFAULT_JOIN_TOLERANCE, JOINS, plan_path, require_coordinates)
 from .joint_trajectory import (
-    check_joint_limits, DEFAULT_JOINT_NAMES, evaluate_segments, JointTrajectoryData,
+    check_joint_limits, DEFAULT_JOINT_NAMES, EXECUTED_KEYS, executed_table, JointTrajectoryData,
     knots_at, minimal_knots, quintic_interpolate, quintic_positions, sample_joint_trajectory,
-    segment_polynomials, validate_jtc)
+    validate_jtc)
 from .kinematics import (
-    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_accelerations,
-    joint_velocities, JointLimits)
+    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_motion, joint_velocities,
+    JointLimits)
 from .limits import CartesianLimits
 from .motion import PROFILES
 from .timing import time_motion
@@ -69,18 +71,6 @@ KNOT_MIN_GAP = 1e-4
 KNOT_ROUNDS = 8
 # A leg slowed down for the executed limits is slowed this much beyond the measured excess.
 SLOWDOWN_MARGIN = 2e-3
-# Executed (JTC-interpolated) peaks: this many samples per knot segment, then this many on
-# the segments whose coarse peak comes within EXECUTED_REFINE_SHARE of the largest.
-EXECUTED_SAMPLES = 16
-EXECUTED_FINE_SAMPLES = 96
-EXECUTED_REFINE_SHARE = 0.97
-# Time step of the finite differences of forward kinematics [s]: truncation and rounding
-# both stay below 1e-4 of the limits' scale at this step.
-EXECUTED_STEP = 2e-5
-# Offsets of the difference stencil, in steps.
-_STENCIL = np.array([-2.0, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0])
-EXECUTED_KEYS = ('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
-                 'joint_peak_accel')
 # A leg slower than this is refused before it is sampled (limits far too low, or the paper's
 # profile on a needle-thin arc): no pick-and-place cycle takes a minute.
 MAX_LEG_DURATION = 60.0
@@ -332,8 +322,8 @@ class CyclePlan:
         (approach, transfer), or (transfer,) when the robot is already at the pick.
     joint_trajectory : JointTrajectoryData
         The chained trajectory, validated for JTC.
-    metrics : dict
-        Flat numbers for diagnostics (str -> float or str).
+    metrics : collections.abc.Mapping
+        Flat numbers for diagnostics (str -> float or str), computed on first access.
     end_position : numpy.ndarray
         TCP position at the end (the place), shape (3,).
 
@@ -371,9 +361,8 @@ def _joint_peaks(motion, config):
     count = max(int(math.ceil(motion.duration / JOINT_CHECK_PERIOD)) + 1, 3)
     t = np.linspace(0.0, motion.duration, count)
     position, velocity, acceleration, _ = motion.evaluate(t)
-    q = inverse_kinematics(position, config.geometry, name='motion point')
-    qdot = joint_velocities(position, q, velocity, config.geometry)
-    qddot = joint_accelerations(position, q, velocity, acceleration, qdot, config.geometry)
+    _, qdot, qddot = joint_motion(position, velocity, acceleration, config.geometry,
+                                  name='motion point')
     return float(np.abs(qdot).max()), float(np.abs(qddot).max())
 
 
@@ -493,6 +482,19 @@ def _spaced(times, added):
     return np.array(merged)
 
 
+def _with_points(trajectory, motion, geometry, times):
+    """Return ``trajectory`` with points at ``times`` (its own and new ones, sorted)."""
+    new = ~np.isin(times, trajectory.time_from_start)
+    if not new.any():
+        return trajectory
+    added = knots_at(motion, geometry, times[new], trajectory.joint_names)
+    order = np.argsort(np.concatenate((trajectory.time_from_start, added.time_from_start)),
+                       kind='stable')
+    return JointTrajectoryData(trajectory.joint_names, *(
+        np.concatenate((getattr(trajectory, name), getattr(added, name)))[order]
+        for name in ('time_from_start', 'positions', 'velocities', 'accelerations')))
+
+
 def executed_bounds(config):
     """
     Return what the executed peaks must stay below, in the order of ``EXECUTED_KEYS``.
@@ -536,12 +538,12 @@ def _joint_points(motion, config, bounds):
         trajectory = sample_joint_trajectory(motion, geometry, config.sample_period,
                                              config.joint_names)
         error = _interpolation_error(motion, trajectory, config)
-        return trajectory, error, _executed_table(trajectory, geometry, bounds)
+        return trajectory, error, executed_table(trajectory, geometry)
     trajectory, error = minimal_knots(motion, geometry, config.joint_names,
                                       config.knot_tolerance)
     step_times, step_sizes = motion.jerk_steps()
     steps = step_times[step_sizes >= JERK_STEP_SHARE * config.limits.max_jerk]
-    table = _executed_table(trajectory, geometry, bounds)
+    table = executed_table(trajectory, geometry)
     for _ in range(KNOT_ROUNDS):
         broken = np.flatnonzero((table > bounds).any(axis=1))
         if broken.size == 0:
@@ -552,97 +554,11 @@ def _joint_points(motion, config, bounds):
             start, end = times[index], times[index + 1]
             inside = steps[(steps > start) & (steps < end)]
             added.extend(inside if inside.size else [0.5 * (start + end)])
-        trajectory = knots_at(motion, geometry, _spaced(times, added), config.joint_names)
-        table = _executed_table(trajectory, geometry, bounds, (times, table))
+        trajectory = _with_points(trajectory, motion, geometry, _spaced(times, added))
+        table = executed_table(trajectory, geometry, (times, table))
     # The added points only bring the interpolation closer to the motion: the deviation
     # measured on the knots' own check grids still bounds it.
     return trajectory, error, table
-
-
-def executed_peaks(trajectory, geometry):
-    """
-    Return the peaks of what JTC executes: its quintic through ``trajectory``, through FK.
-
-    TCP speed [m/s], acceleration norm [m/s^2] and jerk norm [m/s^3] come from
-    central differences (step ``EXECUTED_STEP``) of the forward kinematics of each
-    segment's own polynomial, which extends past the segment's ends, so the
-    one-sided values at every knot count (JTC's jerk steps there). Joint speed and
-    acceleration are the polynomials' exact derivatives. Each segment is sampled
-    ``EXECUTED_SAMPLES`` + 1 times (ends included), those near the largest value
-    again ``EXECUTED_FINE_SAMPLES`` + 1 times.
-
-    Returns
-    -------
-    dict
-        ``EXECUTED_KEYS`` -> float.
-
-    """
-    if trajectory.time_from_start.size < 2:
-        return dict.fromkeys(EXECUTED_KEYS, 0.0)
-    peaks = _executed_table(trajectory, geometry).max(axis=0)
-    return {key: float(value) for key, value in zip(EXECUTED_KEYS, peaks)}
-
-
-def _executed_table(trajectory, geometry, bounds=None, previous=None):
-    """
-    Return the executed peaks of every segment (S, 5), ``EXECUTED_KEYS`` order.
-
-    Segments whose coarse peak comes within ``EXECUTED_REFINE_SHARE`` of the
-    largest (or of ``bounds``, (5,), if given) are sampled again, finer.
-    ``previous`` = (knot times, table) of an earlier set of knots: segments it
-    has (same start, same end) are taken from it.
-    """
-    times = trajectory.time_from_start
-    table = np.zeros((times.size - 1, len(EXECUTED_KEYS)))
-    todo = np.ones(times.size - 1, bool)
-    if previous is not None:
-        old_times, old_table = previous
-        start = np.searchsorted(old_times, times[:-1])
-        start = np.minimum(start, old_times.size - 2)
-        same = (old_times[start] == times[:-1]) & (old_times[start + 1] == times[1:])
-        table[same] = old_table[start[same]]
-        todo = ~same
-    if not todo.any():
-        return table
-    coefficients = segment_polynomials(trajectory)[todo]
-    lengths = np.diff(times)[todo]
-    fresh = _segment_peaks(coefficients, lengths, geometry, EXECUTED_SAMPLES)
-    reference = fresh.max(axis=0)
-    if bounds is not None:
-        reference = np.minimum(reference, bounds)
-    near = (fresh >= EXECUTED_REFINE_SHARE * reference).any(axis=1)
-    if near.any():
-        fresh[near] = np.maximum(fresh[near], _segment_peaks(
-            coefficients[near], lengths[near], geometry, EXECUTED_FINE_SAMPLES))
-    table[todo] = fresh
-    return table
-
-
-def _segment_peaks(coefficients, lengths, geometry, samples):
-    """Return, per segment, the sampled peaks in the order of ``EXECUTED_KEYS``, (S, 5)."""
-    count = lengths.size
-    offsets = lengths[:, np.newaxis] * np.linspace(0.0, 1.0, samples + 1)
-    # Short segments get a shorter step: the polynomial grows fast outside a short segment.
-    step = np.minimum(EXECUTED_STEP, 0.25 * lengths)[:, np.newaxis, np.newaxis]
-    stencil = (offsets[:, :, np.newaxis] + step * _STENCIL).reshape(count, -1)
-    q = evaluate_segments(coefficients, stencil, derivatives=False)
-    tcp = forward_kinematics(q.reshape(-1, 3), geometry, name='interpolated q').reshape(
-        count, samples + 1, _STENCIL.size, 3)
-    h = step[:, :, :, np.newaxis][:, :, 0]
-    # Central differences with steps h and h/2, combined (Richardson) to cancel their h**2
-    # errors: on a short segment the quintic's own fifth derivative is large.
-    back_2, back_1, back_half, middle, ahead_half, ahead_1, ahead_2 = (
-        tcp[:, :, index] for index in range(_STENCIL.size))
-    velocity = (4.0 * (ahead_half - back_half) / h - (ahead_1 - back_1) / (2.0 * h)) / 3.0
-    acceleration = (4.0 * (ahead_half - 2.0 * middle + back_half) / (0.25 * h ** 2)
-                    - (ahead_1 - 2.0 * middle + back_1) / h ** 2) / 3.0
-    jerk = (4.0 * (ahead_1 - 2.0 * ahead_half + 2.0 * back_half - back_1) / (0.25 * h ** 3)
-            - (ahead_2 - 2.0 * ahead_1 + 2.0 * back_1 - back_2) / (2.0 * h ** 3)) / 3.0
-    _, qdot, qddot, _ = evaluate_segments(coefficients, offsets)
-    return np.stack([np.linalg.norm(velocity, axis=2).max(axis=1),
-                     np.linalg.norm(acceleration, axis=2).max(axis=1),
-                     np.linalg.norm(jerk, axis=2).max(axis=1),
-                     np.abs(qdot).max(axis=(1, 2)), np.abs(qddot).max(axis=(1, 2))], axis=1)
 
 
 def _hold(trajectory, seconds):
@@ -707,10 +623,17 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
         trajectory = _concatenate(_hold(_rest_point(trajectory), pick_dwell), trajectory)
     trajectory = _hold(trajectory, place_dwell)
     validate_jtc(trajectory, config.joint_names)
-    metrics = {f'transfer.{key}': value for key, value in transfer.summary().items()
-               if isinstance(value, (int, float, str))}
-    if len(legs) == 2:
-        metrics.update({f'approach.{key}': value for key, value in legs[0].summary().items()
+    plan_time = time.perf_counter() - started
+    return CyclePlan(legs, trajectory, _LazyMetrics(functools.partial(
+        _cycle_metrics, legs, trajectory, plan_time)), place.copy())
+
+
+def _cycle_metrics(legs, trajectory, plan_time):
+    """Return the flat diagnostics of a cycle: each leg's summary, prefixed, and the totals."""
+    named = [('transfer', legs[-1])] + ([('approach', legs[0])] if len(legs) == 2 else [])
+    metrics = {}
+    for name, leg in named:
+        metrics.update({f'{name}.{key}': value for key, value in leg.summary().items()
                         if isinstance(value, (int, float, str))})
     metrics.update({
         'duration': float(trajectory.time_from_start[-1]),
@@ -718,9 +641,37 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
         'executed.max_interpolation_error': max(leg.max_interpolation_error for leg in legs),
         'planned.joint_peak_velocity': max(leg.joint_peak_velocity for leg in legs),
         'planned.joint_peak_accel': max(leg.joint_peak_accel for leg in legs),
-        'plan_time': time.perf_counter() - started,
+        'plan_time': plan_time,
     })
-    return CyclePlan(legs, trajectory, metrics, place.copy())
+    return metrics
+
+
+class _LazyMetrics(Mapping):
+    """
+    A read-only mapping built on first access.
+
+    The metrics are for diagnostics only (the motion does not depend on them),
+    and the legs' summaries sample every motion again: computed when read,
+    after the trajectory is on its way, they stay out of the planning latency.
+    """
+
+    def __init__(self, build):
+        self._build = build
+        self._values = None
+
+    def _computed(self):
+        if self._values is None:
+            self._values = self._build()
+        return self._values
+
+    def __getitem__(self, key):
+        return self._computed()[key]
+
+    def __iter__(self):
+        return iter(self._computed())
+
+    def __len__(self):
+        return len(self._computed())
 
 
 def _rest_point(trajectory):

@@ -59,7 +59,9 @@ from dataclasses import dataclass
 import math
 
 from ellipath_ros.core.errors import InvalidInputError, require_range
-from ellipath_ros.core.geometry import arc_for_policy, ArcPolicy, elliptic_e, require_finite_h
+from ellipath_ros.core.geometry import (
+    arc_for_policy, ArcPolicy, elliptic_e, GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS,
+    require_finite_h)
 import numpy as np
 
 # The paper's Lamé curves: d = 0.05 and 0.15 m for l = 0.15 m, i.e. l / 3 and l.
@@ -72,7 +74,6 @@ _DEFAULT_EXPONENT = 4.0
 # come from quadrature, not from these samples).
 _DEFAULT_SAMPLES = 201
 
-_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _LAME_PANELS = 256
 
 
@@ -194,11 +195,11 @@ def lame_quarter_length(d, e, m=_DEFAULT_EXPONENT):
     m = _require_exponent(m)
     edges = np.linspace(0.0, 0.5 * math.pi, _LAME_PANELS + 1)
     half = 0.5 * np.diff(edges)
-    psi = (0.5 * (edges[1:] + edges[:-1]))[:, None] + half[:, None] * _GL_NODES
+    psi = (0.5 * (edges[1:] + edges[:-1]))[:, None] + half[:, None] * GAUSS_LEGENDRE_NODES
     rho, rho_dot = _unit_lame(psi, m)
     c, s = np.cos(psi), np.sin(psi)
     speed = np.hypot(d * (rho_dot * c - rho * s), e * (rho_dot * s + rho * c))
-    return float(np.sum(half * (speed @ _GL_WEIGHTS)))
+    return float(np.sum(half * (speed @ GAUSS_LEGENDRE_WEIGHTS)))
 
 
 def half_ellipse_length(p, q):
