@@ -42,7 +42,7 @@ import sys
 
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
 from ellipath_ros.core import geometry, timing
-from ellipath_ros.core.geometry import BlendedArc, plan_path, PickPlacePath
+from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
 from ellipath_ros.core.timing import CartesianLimits, time_motion
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -139,7 +139,8 @@ def corners():
     for case in CYCLES:
         paper, bent = paper_path(case), g2_path(case)
         bound_g2 = topp_bound(bent, LIMITS, join_cap=False)
-        print(f"{case[0]}: rho_T {1e3 * paper.arc.end_radius:.2f} mm; TOPP-RA bound on the G2 "
+        name = case[0]
+        print(f'{name}: rho_T {1e3 * paper.arc.end_radius:.2f} mm; TOPP-RA bound on the G2 '
               f'path / on the paper path {bound_g2 / topp_bound(paper, LIMITS, False):.4f}')
         for label, path in (('paper, 25 m/s² step', paper), ('g2', bent)):
             speed, kappa_s, cap, peak = corner_figures(path)
