@@ -28,11 +28,13 @@ path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench
 3. ``timing``: the same cycles with the scan's shares of the limits raised (is the join
    speed handling conservative?).
 4. ``tolerance``: the production design at several ``join_tolerance``.
+5. ``pairs``: on seeded random pairs (default settings), each shape's planned duration over
+   that of the plain quintic with spans from the horizontal bound (the design before).
 
 The shapes are swapped in by replacing the geometry module's ``_blend_shape`` and
 ``_BLEND_PEAK`` for the duration of one measurement (a study, not an API).
 
-    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance]
+    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs]
 """
 
 import contextlib
@@ -49,8 +51,14 @@ from numpy.polynomial import Polynomial
 
 LIMITS = replace(CartesianLimits(), max_accel_jump=25.0)
 CLEARANCE = 0.025
-SHAPES = ((0.0, 0.0), (0.3, -0.5), (0.6, -1.0), (0.6, -1.5), (1.0, -1.0), (1.0, -2.0),
-          (1.2, -1.0), (1.5, 0.0))
+SHAPES = ((-1.2, 0.0), (-0.8, 0.0), (-0.5, 0.0), (-0.3, 0.0), (-0.5, -0.5), (-0.5, 0.5),
+          (0.0, 0.0), (0.0, -0.5), (0.3, -0.5), (0.6, -1.5), (1.0, -1.0), (1.5, 0.0))
+# The pairs study: how many, the seed, and the box they are drawn from (a cylinder of
+# PAIR_RADIUS around the axis, heights in PAIR_HEIGHTS) [m].
+PAIR_COUNT = 40
+PAIR_SEED = 7
+PAIR_RADIUS = 0.2
+PAIR_HEIGHTS = (-0.9, -0.75)
 # Shares of the scan (timing.py) raised one at a time, then all at once.
 TIMING_VARIANTS = ({}, {'NORMAL_JERK_SHARE': 0.98}, {'CEILING_SHARE': 0.98},
                    {'VALLEY_SHARE': 0.98}, {'END_RETRY_FACTOR': 0.97, 'END_TRIES': 100},
@@ -94,16 +102,20 @@ def with_bend(paper, bend):
 
 
 def g2_path(case, tolerance=geometry.DEFAULT_JOIN_TOLERANCE, horizontal=False):
-    """Return the G2 path with the current shape, spans by distance or horizontal bound."""
+    """Return a bench cycle's G2 path with the current shape (see :func:`bend_of`)."""
     paper = paper_path(case)
-    if not horizontal:
-        return with_bend(paper, geometry.blend_arc(paper.arc, tolerance))
+    return with_bend(paper, bend_of(paper, tolerance, horizontal))
+
+
+def bend_of(paper, tolerance=geometry.DEFAULT_JOIN_TOLERANCE, horizontal=False):
+    """Return the bend of ``paper``'s ellipse, spans by distance or by horizontal bound."""
     arc = paper.arc
+    if not horizontal:
+        return geometry.blend_arc(arc, tolerance)
     span = math.sqrt(tolerance / (geometry._BLEND_PEAK * arc.l))
     t_apex = math.atan2(arc.k, arc.h)
     caps = (geometry._BLEND_APEX_SHARE * (math.pi - t_apex), geometry._BLEND_APEX_SHARE * t_apex)
-    spans = [min(span, cap, geometry._BLEND_MAX_SPAN) for cap in caps]
-    return with_bend(paper, BlendedArc(arc, *spans))
+    return BlendedArc(arc, *(min(span, cap, geometry._BLEND_MAX_SPAN) for cap in caps))
 
 
 BOUNDS = {}
@@ -182,8 +194,44 @@ def tolerances():
         print(f"  join_tolerance {1e3 * tolerance:.2f} mm: {' | '.join(row)}")
 
 
+def random_papers():
+    """Return the paper-join paths of ``PAIR_COUNT`` seeded random pairs (default arc rule)."""
+    rng = np.random.default_rng(PAIR_SEED)
+    papers = []
+    while len(papers) < PAIR_COUNT:
+        ends = []
+        for _ in range(2):
+            radius, angle = PAIR_RADIUS * math.sqrt(rng.uniform()), rng.uniform(0.0, 2 * math.pi)
+            ends.append((radius * math.cos(angle), radius * math.sin(angle),
+                         rng.uniform(*PAIR_HEIGHTS)))
+        try:
+            papers.append(plan_path(ends[0], ends[1], CLEARANCE, CLEARANCE))
+        except geometry.DegenerateGeometryError:
+            continue
+    return papers
+
+
+def pairs():
+    """Print each shape's planned durations on random pairs over the design before."""
+    print(f'## pairs: {PAIR_COUNT} seeded random pairs (seed {PAIR_SEED}), planned duration over '
+          'that of the plain quintic with spans from the horizontal bound')
+    limits = CartesianLimits()
+    papers = random_papers()
+    with patched(geometry, **dict(zip(('_blend_shape', '_BLEND_PEAK'), family_shape(0.0, 0.0)))):
+        before = np.array([time_motion(with_bend(paper, bend_of(paper, horizontal=True)),
+                                       limits).duration for paper in papers])
+    for p1, p2 in SHAPES:
+        shape, peak = family_shape(p1, p2)
+        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+            ratios = np.array([time_motion(with_bend(paper, bend_of(paper)), limits).duration
+                               for paper in papers]) / before
+        print(f'  p1 {p1:+.1f} p2 {p2:+.1f}: mean {ratios.mean():.4f} median '
+              f'{np.median(ratios):.4f} max {ratios.max():.3f}; faster on '
+              f'{np.mean(ratios < 0.9995):.0%}, slower on {np.mean(ratios > 1.0005):.0%}')
+
+
 STUDIES = {'corners': corners, 'shapes': shapes, 'timing': timing_variants,
-           'tolerance': tolerances}
+           'tolerance': tolerances, 'pairs': pairs}
 
 
 def main(argv):

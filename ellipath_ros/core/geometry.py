@@ -54,9 +54,8 @@ ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 JOINS = ('g2', 'paper')
 DEFAULT_JOIN_TOLERANCE = 5e-4
 # -- G2 transition design (issue 14; scripts/join_study.py measures the choices) ----------
-# Largest value of the transition shape f(u) = u**2 (1 - u)**3 (1 + 2 u - 2 u**2) / 2 on
-# [0, 1] (at u = 0.4115; f >= 0 there), rounded up.
-_BLEND_PEAK = 0.0256142221
+# Largest value of the transition shape f(u) = u**2 (1 - u)**4 / 2 on [0, 1] (at u = 1/3).
+_BLEND_PEAK = 8.0 / 729.0
 # Each transition is the longest whose curve stays within the tolerance of the ellipse: a
 # bisection between the closed-form horizontal bound and the caps below. The distance used is
 # an upper bound: to the ellipse point reached by Newton steps from the same parameter.
@@ -419,22 +418,21 @@ class EllipticArc(_ParametricArc):
 
 def _blend_shape(u):
     """
-    Return f(u) = u**2 (1 - u)**3 (1 + 2 u - 2 u**2) / 2 and its first three derivatives.
+    Return f(u) = u**2 (1 - u)**4 / 2 and its first three derivatives, u in [0, 1].
 
-    u in [0, 1]. f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = 0 at u = 1:
+    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = f''' = 0 at u = 1:
     subtracted from the ellipse with the right scale it cancels the curvature
-    at the vertical line and vanishes to second order where it meets the
-    ellipse. Every such polynomial is u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...);
-    f'''(0) = 6 p1 - 9 sets how steeply the curvature leaves the line, hence
-    the normal jerk kappa' v**3 that caps the speed at T1. (p1, p2) = (1, -1)
-    (f'''(0) = -3, a third of the plain quintic's -9) times the benchmark
-    cycles fastest of the family (scripts/join_study.py).
+    at the vertical line and vanishes to third order where it meets the
+    ellipse (curvature and its rate continuous there). Every polynomial with
+    the conditions at 0 and f = f' = f'' = 0 at 1 is
+    u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
+    p2 = 0, which times seeded random pairs and the benchmark cycles fastest
+    of those tried (scripts/join_study.py).
     """
-    u2 = u * u
-    return (u2 * (1.0 + u * (-1.0 + u * (-5.0 + u * (11.0 + u * (-8.0 + 2.0 * u))))) / 2.0,
-            u * (2.0 + u * (-3.0 + u * (-20.0 + u * (55.0 + u * (-48.0 + 14.0 * u))))) / 2.0,
-            1.0 + u * (-3.0 + u * (-30.0 + u * (110.0 + u * (-120.0 + 42.0 * u)))),
-            -3.0 + u * (-60.0 + u * (330.0 + u * (-480.0 + 210.0 * u))))
+    return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
+            u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
+            1.0 + u * (-12.0 + u * (36.0 + u * (-40.0 + 15.0 * u))),
+            -12.0 + u * (72.0 + u * (-120.0 + 60.0 * u)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -445,7 +443,7 @@ class BlendedArc(_ParametricArc):
     Q(t) = P(t) + (delta(t), 0): the ellipse bent horizontally near its ends.
     Near T1 (u = (pi - t) / span_1 < 1) delta = -l span_1**2 f(u), near T2
     (u = t / span_2 < 1) delta = +l span_2**2 f(u), elsewhere 0, with the
-    polynomial f(u) = u**2 (1 - u)**3 (1 + 2 u - 2 u**2) / 2 (:func:`_blend_shape`).
+    polynomial f(u) = u**2 (1 - u)**4 / 2 (:func:`_blend_shape`).
     Since d2P/dt2 = -P,
     x'' = -l cos t + delta'' is 0 at T1 and T2: the curvature starts and ends at
     0 (the vertical line's), the tangent stays vertical there, and at u = 1 the
@@ -457,13 +455,14 @@ class BlendedArc(_ParametricArc):
     vertical lines and the ellipse beyond the transition stay the paper's),
     heights are untouched (delta is horizontal, so the apex height is the
     paper's), and the horizontal offset is bounded in closed form:
-    |delta| <= l span**2 max f = l span**2 * 0.0256 (:func:`blend_arc` sizes
+    |delta| <= l span**2 max f = l span**2 * 8/729 (:func:`blend_arc` sizes
     the spans by the distance from the ellipse, which is smaller). The price:
     any transition that starts on the vertical line and ends on the ellipse
     must turn as much as the ellipse does over the same stretch, so its
     curvature overshoots the ellipse's, and it leaves T1 and T2 with dkappa/ds
-    about 3 kappa_T / (transition length), which caps the speed there by the
-    normal jerk.
+    about 12 kappa_T / (transition length), which caps the speed there by the
+    normal jerk (a gentler start needs a larger overshoot further in, which
+    the timing pays for dearly: see :func:`_blend_shape`).
 
     Attributes
     ----------
