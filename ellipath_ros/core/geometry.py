@@ -426,8 +426,8 @@ def _blend_shape(u):
     ellipse (curvature and its rate continuous there). Every polynomial with
     the conditions at 0 and f = f' = f'' = 0 at 1 is
     u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
-    p2 = 0, which times seeded random pairs and the benchmark cycles fastest
-    of those tried (scripts/join_study.py).
+    p2 = 0, among the fastest of those tried on seeded random pairs, where a
+    gentler start (p1 > 0) is much slower (scripts/join_study.py).
     """
     return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
             u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
