@@ -56,12 +56,15 @@ DEFAULT_JOIN_TOLERANCE = 5e-4
 # -- G2 transition design (issue 14; scripts/join_study.py measures the choices) ----------
 # Largest value of the transition shape f(u) = u**2 (1 - u)**4 / 2 on [0, 1] (at u = 1/3).
 _BLEND_PEAK = 8.0 / 729.0
-# Each transition is the longest whose curve stays within the tolerance of the ellipse: a
-# bisection between the closed-form horizontal bound and the caps below. The distance used is
-# an upper bound: to the ellipse point reached by Newton steps from the same parameter.
-_BLEND_SPAN_STEPS = 24
-_BLEND_DISTANCE_SAMPLES = 401
-_BLEND_FOOT_STEPS = 6
+# Each transition is the longest whose curve stays within the tolerance of the ellipse, found
+# in a few rescaling steps from the closed-form horizontal bound (within the caps below) to a
+# relative precision. The distance used is an upper bound: to the ellipse point reached by
+# Newton steps from the same parameter, sampled with a margin for what lies between samples.
+_BLEND_SPAN_STEPS = 8
+_BLEND_SPAN_PRECISION = 1e-3
+_BLEND_DISTANCE_SAMPLES = 201
+_BLEND_DISTANCE_MARGIN = 2e-3
+_BLEND_FOOT_STEPS = 4
 # A transition spans at most this share of the arc's parameter on its side of the apex...
 _BLEND_APEX_SHARE = 0.8
 # ... and at most this much of the parameter range [0, pi] (the two never overlap).
@@ -588,20 +591,25 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
 
 
 def _longest_span(ellipse, tolerance, safe, cap, at_t1):
-    """Return the longest span up to ``cap`` within ``tolerance`` (bisection above ``safe``)."""
-    # Sampled: keep a thousandth of the tolerance for what falls between the samples.
-    limit = (1.0 - 1e-3) * tolerance
-    low = min(safe, cap)
-    if _transition_distance(ellipse, cap, at_t1) <= limit:
-        return cap
-    high = cap
+    """
+    Return the longest span up to ``cap`` found within ``tolerance`` (``safe`` at least).
+
+    The distance grows about as the span squared (the offset does exactly):
+    each step rescales the span by the square root of the room left, and the
+    longest span whose distance was checked within the limit is kept.
+    """
+    # Sampled: keep a share of the tolerance for what falls between the samples.
+    limit = (1.0 - _BLEND_DISTANCE_MARGIN) * tolerance
+    best = span = min(safe, cap)
     for _ in range(_BLEND_SPAN_STEPS):
-        middle = 0.5 * (low + high)
-        if _transition_distance(ellipse, middle, at_t1) <= limit:
-            low = middle
-        else:
-            high = middle
-    return low
+        distance = _transition_distance(ellipse, span, at_t1)
+        if distance <= limit:
+            best = max(best, span)
+        following = min(span * math.sqrt(limit / distance), cap)
+        if abs(following - span) <= _BLEND_SPAN_PRECISION * span:
+            break
+        span = following
+    return best
 
 
 def _transition_distance(ellipse, span, at_t1):
