@@ -37,7 +37,7 @@ contains one end of the major axis).
 Joins (``join``): the paper's path (``'paper'``) goes straight from a vertical
 line (curvature 0) into the ellipse (curvature 1/rho_T), a curvature step. The
 ``'g2'`` join (:class:`BlendedArc`) keeps the vertical lines whole and bends
-the first and last stretch of the ellipse horizontally by a quintic in its
+the first and last stretch of the ellipse horizontally by a polynomial in its
 parameter, so that the curvature rises continuously from 0 at T1 (falls to 0
 at T2) and the path stays within ``join_tolerance`` of the paper's.
 """
@@ -54,9 +54,18 @@ ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 # How the vertical lines meet the arc: a curvature-continuous transition, or the paper's step.
 JOINS = ('g2', 'paper')
 DEFAULT_JOIN_TOLERANCE = 5e-4
-# Largest value of the transition shape u**2 (1 - u)**3 / 2 on [0, 1] (at u = 2/5).
-# Largest value of the transition shape u**2 (1 - u)**3 / 2 on [0, 1] (at u = 2/5).
-_BLEND_PEAK = 54.0 / 3125.0
+# -- G2 transition design (issue 14; scripts/join_study.py measures the choices) ----------
+# Largest value of the transition shape f(u) = u**2 (1 - u)**4 / 2 on [0, 1] (at u = 1/3).
+_BLEND_PEAK = 8.0 / 729.0
+# Each transition is the longest whose curve stays within the tolerance of the ellipse, found
+# in a few rescaling steps from the closed-form horizontal bound (within the caps below) to a
+# relative precision. The distance used is an upper bound: to the ellipse point reached by
+# Newton steps from the same parameter, sampled with a margin for what lies between samples.
+_BLEND_SPAN_STEPS = 8
+_BLEND_SPAN_PRECISION = 1e-3
+_BLEND_DISTANCE_SAMPLES = 201
+_BLEND_DISTANCE_MARGIN = 2e-3
+_BLEND_FOOT_STEPS = 4
 # A transition spans at most this share of the arc's parameter on its side of the apex...
 _BLEND_APEX_SHARE = 0.8
 # ... and at most this much of the parameter range [0, pi] (the two never overlap).
@@ -452,17 +461,21 @@ class EllipticArc(_ParametricArc):
 
 def _blend_shape(u):
     """
-    Return f(u) = u**2 (1 - u)**3 / 2 and its first three derivatives, u in [0, 1].
+    Return f(u) = u**2 (1 - u)**4 / 2 and its first three derivatives, u in [0, 1].
 
-    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = 0 at u = 1: subtracted from
-    the ellipse with the right scale it cancels the curvature at the vertical
-    line and vanishes to second order where it meets the ellipse.
+    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = f''' = 0 at u = 1:
+    subtracted from the ellipse with the right scale it cancels the curvature
+    at the vertical line and vanishes to third order where it meets the
+    ellipse (curvature and its rate continuous there). Every polynomial with
+    the conditions at 0 and f = f' = f'' = 0 at 1 is
+    u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
+    p2 = 0, among the fastest of those tried on seeded random pairs, where a
+    gentler start (p1 > 0) is much slower (scripts/join_study.py).
     """
-    w = 1.0 - u
-    return (0.5 * u * u * w * w * w,
-            0.5 * u * w * w * (2.0 - 5.0 * u),
-            1.0 + u * (-9.0 + u * (18.0 - 10.0 * u)),
-            -9.0 + u * (36.0 - 30.0 * u))
+    return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
+            u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
+            1.0 + u * (-12.0 + u * (36.0 + u * (-40.0 + 15.0 * u))),
+            -12.0 + u * (72.0 + u * (-120.0 + 60.0 * u)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -472,8 +485,9 @@ class BlendedArc(_ParametricArc):
 
     Q(t) = P(t) + (delta(t), 0): the ellipse bent horizontally near its ends.
     Near T1 (u = (pi - t) / span_1 < 1) delta = -l span_1**2 f(u), near T2
-    (u = t / span_2 < 1) delta = +l span_2**2 f(u), elsewhere 0, with the quintic
-    f(u) = u**2 (1 - u)**3 / 2 (:func:`_blend_shape`). Since d2P/dt2 = -P,
+    (u = t / span_2 < 1) delta = +l span_2**2 f(u), elsewhere 0, with the
+    polynomial f(u) = u**2 (1 - u)**4 / 2 (:func:`_blend_shape`).
+    Since d2P/dt2 = -P,
     x'' = -l cos t + delta'' is 0 at T1 and T2: the curvature starts and ends at
     0 (the vertical line's), the tangent stays vertical there, and at u = 1 the
     bent curve meets the ellipse with equal position, tangent and curvature
@@ -483,12 +497,15 @@ class BlendedArc(_ParametricArc):
     timing, no Fresnel integrals), it needs no shift of the ellipse (the
     vertical lines and the ellipse beyond the transition stay the paper's),
     heights are untouched (delta is horizontal, so the apex height is the
-    paper's), and the deviation from the paper's path is bounded in closed
-    form: |delta| <= l span**2 max f = l span**2 * 54/3125. The price: any
-    transition that starts on the vertical line and ends on the ellipse must
-    turn as much as the ellipse does over the same stretch, so its curvature
-    overshoots the ellipse's (by up to ~37 % here), and it rises with
-    dkappa/ds about 9 kappa_T / (transition length) at T1 and T2.
+    paper's), and the horizontal offset is bounded in closed form:
+    |delta| <= l span**2 max f = l span**2 * 8/729 (:func:`blend_arc` sizes
+    the spans by the distance from the ellipse, which is smaller). The price:
+    any transition that starts on the vertical line and ends on the ellipse
+    must turn as much as the ellipse does over the same stretch, so its
+    curvature overshoots the ellipse's, and it leaves T1 and T2 with dkappa/ds
+    about 12 kappa_T / (transition length), which caps the speed there by the
+    normal jerk (a gentler start needs a larger overshoot further in, which
+    the timing pays for dearly: see :func:`_blend_shape`).
 
     Attributes
     ----------
@@ -595,16 +612,21 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     Return the :class:`BlendedArc` of ``ellipse`` that deviates at most ``tolerance``.
 
     Each transition is as long as the tolerance allows (a longer one raises the
-    curvature more gently, which lets the motion through it faster), but ends
+    curvature more gently, which lets the motion through it faster), measured
+    as the distance from the ellipse (:func:`_transition_distance`), not the
+    horizontal offset, which overstates it where the ellipse leans; but it ends
     before ``_BLEND_APEX_SHARE`` of the way to the apex and within
-    ``_BLEND_MAX_SPAN``; spans are halved while the bent curve would slow its
+    ``_BLEND_MAX_SPAN``. Spans are halved while the bent curve would slow its
     parameter speed to below ``_BLEND_MIN_SPEED_SHARE`` of the ellipse's.
     """
     tolerance = require_range('join_tolerance', tolerance, 0.0, 0.01, low_open=True, unit='m')
-    widest = math.sqrt(tolerance / (_BLEND_PEAK * ellipse.l))
+    # The horizontal offset bounds the distance: a span that is always short enough.
+    safe = math.sqrt(tolerance / (_BLEND_PEAK * ellipse.l))
     t_apex = math.atan2(ellipse.k, ellipse.h)
-    span_1 = min(widest, _BLEND_APEX_SHARE * (math.pi - t_apex), _BLEND_MAX_SPAN)
-    span_2 = min(widest, _BLEND_APEX_SHARE * t_apex, _BLEND_MAX_SPAN)
+    span_1, span_2 = (
+        _longest_span(ellipse, tolerance, safe, min(_BLEND_APEX_SHARE * share, _BLEND_MAX_SPAN),
+                      at_t1)
+        for share, at_t1 in ((math.pi - t_apex, True), (t_apex, False)))
     t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
     speed = ellipse.speed(t)
     slowest = float(speed.min())
@@ -620,6 +642,53 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     raise DegenerateGeometryError(
         f'join: expected a regular G2 transition for l = {ellipse.l:.6g} m, '
         f'h = {ellipse.h:.6g} m, got none; use join paper')
+
+
+def _longest_span(ellipse, tolerance, safe, cap, at_t1):
+    """
+    Return the longest span up to ``cap`` found within ``tolerance`` (``safe`` at least).
+
+    The distance grows about as the span squared (the offset does exactly):
+    each step rescales the span by the square root of the room left, and the
+    longest span whose distance was checked within the limit is kept.
+    """
+    # Sampled: keep a share of the tolerance for what falls between the samples.
+    limit = (1.0 - _BLEND_DISTANCE_MARGIN) * tolerance
+    best = span = min(safe, cap)
+    for _ in range(_BLEND_SPAN_STEPS):
+        distance = _transition_distance(ellipse, span, at_t1)
+        if distance <= limit:
+            best = max(best, span)
+        following = min(span * math.sqrt(limit / distance), cap)
+        if abs(following - span) <= _BLEND_SPAN_PRECISION * span:
+            break
+        span = following
+    return best
+
+
+def _transition_distance(ellipse, span, at_t1):
+    """
+    Return an upper bound on the distance of a transition from the ellipse [m].
+
+    Per sample the smaller of the horizontal offset and the distance to the
+    ellipse point that ``_BLEND_FOOT_STEPS`` Newton steps on
+    (P(t) - Q) . P'(t) = 0 reach from the sample's own parameter (either is a
+    point of the paper's path).
+    """
+    u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
+    t = math.pi - span * u if at_t1 else span * u
+    offset = ellipse.l * span ** 2 * _blend_shape(u)[0]
+    bent = ellipse.point(t)
+    bent[:, 0] += -offset if at_t1 else offset
+    foot = t
+    for _ in range(_BLEND_FOOT_STEPS):
+        point, slope = ellipse.point(foot), ellipse.derivative(foot)
+        gap = point - bent
+        # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
+        rate = np.einsum('ij,ij->i', slope, slope) - np.einsum('ij,ij->i', gap, point)
+        foot = np.clip(foot - np.einsum('ij,ij->i', gap, slope) / rate, 0.0, math.pi)
+    distance = np.linalg.norm(ellipse.point(foot) - bent, axis=1)
+    return float(np.minimum(distance, np.abs(offset)).max())
 
 
 def require_finite_h(h):

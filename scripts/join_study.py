@@ -1,0 +1,245 @@
+#!/usr/bin/env python3
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What limits the time-optimal cycle with the G2 join (issue 14, item 4): a study.
+
+All durations are planned (time_motion, no JTC), as ratios to TOPP-RA's bound on the paper's
+path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench's two cycles.
+
+1. ``corners``: per cycle, the paper join (25 m/s² step) against the G2 join: speed at T1,
+   dkappa/ds at T1 and the speed cap it sets through the normal jerk, the transition's peak
+   curvature, and TOPP-RA's bound on the G2 path itself (what the geometry alone costs).
+2. ``shapes``: the transition f(u) = u²(1-u)³(1/2 + p1 u + p2 u²) for several (p1, p2),
+   each with spans from the closed-form horizontal bound and from the distance to the
+   ellipse (the production rule, :func:`ellipath_ros.core.geometry.blend_arc`).
+3. ``timing``: the same cycles with the scan's shares of the limits raised (is the join
+   speed handling conservative?).
+4. ``tolerance``: the production design at several ``join_tolerance``.
+5. ``pairs``: on seeded random pairs (default settings), each shape's planned duration over
+   that of the plain quintic with spans from the horizontal bound (the design before).
+
+The shapes are swapped in by replacing the geometry module's ``_blend_shape`` and
+``_BLEND_PEAK`` for the duration of one measurement (a study, not an API).
+
+    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs]
+"""
+
+import contextlib
+from dataclasses import replace
+import math
+import sys
+
+from ellipath_ros.bench.cycle import CYCLES, topp_bound
+from ellipath_ros.core import geometry, timing
+from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
+from ellipath_ros.core.timing import CartesianLimits, time_motion
+import numpy as np
+from numpy.polynomial import Polynomial
+
+LIMITS = replace(CartesianLimits(), max_accel_jump=25.0)
+CLEARANCE = 0.025
+SHAPES = ((-1.2, 0.0), (-0.8, 0.0), (-0.5, 0.0), (-0.3, 0.0), (-0.5, -0.5), (-0.5, 0.5),
+          (0.0, 0.0), (0.0, -0.5), (0.3, -0.5), (0.6, -1.5), (1.0, -1.0), (1.5, 0.0))
+# The pairs study: how many, the seed, and the box they are drawn from (a cylinder of
+# PAIR_RADIUS around the axis, heights in PAIR_HEIGHTS) [m].
+PAIR_COUNT = 40
+PAIR_SEED = 7
+PAIR_RADIUS = 0.2
+PAIR_HEIGHTS = (-0.9, -0.75)
+# Shares of the scan (timing.py) raised one at a time, then all at once.
+TIMING_VARIANTS = ({}, {'NORMAL_JERK_SHARE': 0.98}, {'CEILING_SHARE': 0.98},
+                   {'VALLEY_SHARE': 0.98}, {'END_RETRY_FACTOR': 0.97, 'END_TRIES': 100},
+                   {'NORMAL_JERK_SHARE': 0.98, 'CEILING_SHARE': 0.98, 'VALLEY_SHARE': 0.98,
+                    'END_RETRY_FACTOR': 0.97, 'END_TRIES': 100})
+TOLERANCES = (2.5e-4, 5e-4, 1e-3, 2e-3)
+
+
+def family_shape(p1, p2):
+    """Return (shape function like geometry._blend_shape, largest |f| on [0, 1])."""
+    f = Polynomial([0.0, 0.0, 1.0]) * Polynomial([1.0, -1.0]) ** 3 * Polynomial([0.5, p1, p2])
+    derivatives = [f, f.deriv(1), f.deriv(2), f.deriv(3)]
+    peak = float(np.abs(f(np.linspace(0.0, 1.0, 100001))).max()) * (1.0 + 1e-6)
+    return (lambda u: tuple(d(u) for d in derivatives)), peak
+
+
+@contextlib.contextmanager
+def patched(module, **values):
+    """Set module attributes for the duration of the block (those the module has)."""
+    saved = {name: getattr(module, name) for name in values if hasattr(module, name)}
+    for name in saved:
+        setattr(module, name, values[name])
+    try:
+        yield sorted(saved)
+    finally:
+        for name, value in saved.items():
+            setattr(module, name, value)
+
+
+def paper_path(case):
+    """Return the paper-join path of a bench cycle."""
+    _, pick, place, policy = case
+    return plan_path(pick, place, CLEARANCE, CLEARANCE, policy, 'paper')
+
+
+def with_bend(paper, bend):
+    """Return the paper's path with ``bend`` between T1 and T2 (join g2)."""
+    return PickPlacePath(paper.pick, paper.place, paper.tangent_1, paper.tangent_2, paper.arc,
+                         paper.direction, np.array([CLEARANCE, bend.length, CLEARANCE]),
+                         bend, 'g2')
+
+
+def g2_path(case, tolerance=geometry.DEFAULT_JOIN_TOLERANCE, horizontal=False):
+    """Return a bench cycle's G2 path with the current shape (see :func:`bend_of`)."""
+    paper = paper_path(case)
+    return with_bend(paper, bend_of(paper, tolerance, horizontal))
+
+
+def bend_of(paper, tolerance=geometry.DEFAULT_JOIN_TOLERANCE, horizontal=False):
+    """Return the bend of ``paper``'s ellipse, spans by distance or by horizontal bound."""
+    arc = paper.arc
+    if not horizontal:
+        return geometry.blend_arc(arc, tolerance)
+    span = math.sqrt(tolerance / (geometry._BLEND_PEAK * arc.l))
+    t_apex = math.atan2(arc.k, arc.h)
+    caps = (geometry._BLEND_APEX_SHARE * (math.pi - t_apex), geometry._BLEND_APEX_SHARE * t_apex)
+    return BlendedArc(arc, *(min(span, cap, geometry._BLEND_MAX_SPAN) for cap in caps))
+
+
+BOUNDS = {}
+
+
+def ratio(case, path):
+    """Return the planned duration on ``path`` over TOPP-RA's bound on the paper path."""
+    if case[0] not in BOUNDS:
+        BOUNDS[case[0]] = topp_bound(paper_path(case), LIMITS, join_cap=False)
+    return time_motion(path, LIMITS).duration / BOUNDS[case[0]]
+
+
+def corner_figures(path):
+    """Return (speed at T1, dkappa/ds at T1, its speed cap, peak kappa / kappa_T) of a path."""
+    motion = time_motion(path, LIMITS)
+    t = np.linspace(0.0, motion.duration, 20001)
+    s, v = motion.path_state(t)[:2]
+    s_t1 = path.segment_ends[1]
+    speed_t1 = float(np.interp(s_t1, s, v))
+    near = s_t1 + np.linspace(0.0, 0.03, 3001)
+    samples = path.evaluate(near)
+    kappa = np.linalg.norm(samples.curvature, axis=1)
+    kappa_s = float(np.linalg.norm(samples.curvature_rate[1]))
+    share = timing.CEILING_SHARE * timing.JERK_MARGIN * LIMITS.max_jerk
+    cap = (share / kappa_s) ** (1.0 / 3.0) if kappa_s > 0.0 else math.inf
+    return speed_t1, kappa_s, cap, float(kappa.max()) / path.arc.curvature_and_rate(
+        np.array([math.pi]))[0][0]
+
+
+def corners():
+    """Print what limits each cycle at its corners."""
+    print('## corners: paper join (25 m/s² step) against g2 (planned)')
+    for case in CYCLES:
+        paper, bent = paper_path(case), g2_path(case)
+        bound_g2 = topp_bound(bent, LIMITS, join_cap=False)
+        name = case[0]
+        print(f'{name}: rho_T {1e3 * paper.arc.end_radius:.2f} mm; TOPP-RA bound on the G2 '
+              f'path / on the paper path {bound_g2 / topp_bound(paper, LIMITS, False):.4f}')
+        for label, path in (('paper, 25 m/s² step', paper), ('g2', bent)):
+            speed, kappa_s, cap, peak = corner_figures(path)
+            print(f'  {label:20s} ratio {ratio(case, path):.4f}  v(T1) {speed:.3f} m/s  '
+                  f'dkappa/ds(T1) {kappa_s:8.0f} 1/m²  normal-jerk cap at T1 {cap:.3f} m/s  '
+                  f'peak kappa / kappa_T {peak:.2f}')
+
+
+def shapes():
+    """Print the ratios of the shape family, spans by horizontal bound and by distance."""
+    print('## shapes: f = u²(1-u)³(1/2 + p1 u + p2 u²), ratio per cycle (planned); '
+          "f'''(0) = 6 p1 - 9")
+    for p1, p2 in SHAPES:
+        shape, peak = family_shape(p1, p2)
+        row = []
+        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+            for case in CYCLES:
+                by_offset, by_distance = g2_path(case, horizontal=True), g2_path(case)
+                row.append(f'{ratio(case, by_offset):.4f} / {ratio(case, by_distance):.4f} '
+                           f'(span {by_distance.bend.span_1:.3f})')
+        print(f'  p1 {p1:+.1f} p2 {p2:+.1f}: horizontal bound / distance: ' + ' | '.join(row))
+
+
+def timing_variants():
+    """Print the production design's ratios with the scan's shares raised."""
+    print('## timing: shares of the limits in the scan raised (planned ratios, g2)')
+    for variant in TIMING_VARIANTS:
+        with patched(timing, **variant) as names:
+            row = [f'{ratio(case, g2_path(case)):.4f}' for case in CYCLES]
+        described = ', '.join(f'{name} {variant[name]}' for name in names) or 'as shipped'
+        print(f"  {described}: {' | '.join(row)}")
+
+
+def tolerances():
+    """Print the production design's ratios at several join tolerances."""
+    print('## tolerance: production design (planned ratios, g2)')
+    for tolerance in TOLERANCES:
+        row = [f'{ratio(case, g2_path(case, tolerance)):.4f}' for case in CYCLES]
+        print(f"  join_tolerance {1e3 * tolerance:.2f} mm: {' | '.join(row)}")
+
+
+def random_papers():
+    """Return the paper-join paths of ``PAIR_COUNT`` seeded random pairs (default arc rule)."""
+    rng = np.random.default_rng(PAIR_SEED)
+    papers = []
+    while len(papers) < PAIR_COUNT:
+        ends = []
+        for _ in range(2):
+            radius, angle = PAIR_RADIUS * math.sqrt(rng.uniform()), rng.uniform(0.0, 2 * math.pi)
+            ends.append((radius * math.cos(angle), radius * math.sin(angle),
+                         rng.uniform(*PAIR_HEIGHTS)))
+        try:
+            papers.append(plan_path(ends[0], ends[1], CLEARANCE, CLEARANCE))
+        except geometry.DegenerateGeometryError:
+            continue
+    return papers
+
+
+def pairs():
+    """Print each shape's planned durations on random pairs over the design before."""
+    print(f'## pairs: {PAIR_COUNT} seeded random pairs (seed {PAIR_SEED}), planned duration over '
+          'that of the plain quintic with spans from the horizontal bound')
+    limits = CartesianLimits()
+    papers = random_papers()
+    with patched(geometry, **dict(zip(('_blend_shape', '_BLEND_PEAK'), family_shape(0.0, 0.0)))):
+        before = np.array([time_motion(with_bend(paper, bend_of(paper, horizontal=True)),
+                                       limits).duration for paper in papers])
+    for p1, p2 in SHAPES:
+        shape, peak = family_shape(p1, p2)
+        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+            ratios = np.array([time_motion(with_bend(paper, bend_of(paper)), limits).duration
+                               for paper in papers]) / before
+        print(f'  p1 {p1:+.1f} p2 {p2:+.1f}: mean {ratios.mean():.4f} median '
+              f'{np.median(ratios):.4f} max {ratios.max():.3f}; faster on '
+              f'{np.mean(ratios < 0.9995):.0%}, slower on {np.mean(ratios > 1.0005):.0%}')
+
+
+STUDIES = {'corners': corners, 'shapes': shapes, 'timing': timing_variants,
+           'tolerance': tolerances, 'pairs': pairs}
+
+
+def main(argv):
+    print('cycles: ' + ' | '.join(case[0] for case in CYCLES))
+    for name in argv or STUDIES:
+        STUDIES[name]()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
