@@ -181,7 +181,7 @@ class PlannedMotion:
     start_position: np.ndarray
     end_position: np.ndarray
     plan_time: float
-    ready: object = None
+    ready: float | None = None
     details: dict = field(default_factory=dict)
 
     @property
@@ -243,9 +243,9 @@ class Release:
     published: float
     earliest_start: float
     latest_start: float
-    stamp: object = None
-    previous_end: object = None
-    previous_earliest_end: object = None
+    stamp: float | None = None
+    previous_end: float | None = None
+    previous_earliest_end: float | None = None
     waited_for_planner: bool = False
 
     @property
@@ -715,7 +715,7 @@ class StartCheck:
     """
 
     action: str
-    position: object
+    position: np.ndarray | None
     distance: float
     basis: str
 

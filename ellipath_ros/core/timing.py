@@ -67,6 +67,7 @@ from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from .errors import InvalidInputError, LimitError, require_range
 from .geometry import PickPlacePath
+from .settings import validate_fields
 
 PROFILES = ('curvature', 'time_optimal')
 
@@ -175,14 +176,9 @@ class CartesianLimits:
     max_accel_jump: float = 25.0
 
     def __post_init__(self):
-        # Practical ranges: beyond them a motion lasts hours or the arithmetic overflows.
-        for name, low, high, unit in (('max_speed', 0.01, 100.0, 'm/s'),
-                                      ('max_accel', 0.1, 1e4, 'm/s^2'),
-                                      ('max_jerk', 1.0, 1e7, 'm/s^3')):
-            object.__setattr__(self, name, require_range(
-                name, getattr(self, name), low, high, unit=unit))
-        object.__setattr__(self, 'max_accel_jump', require_range(
-            'max_accel_jump', self.max_accel_jump, 0.0, 1e4, unit='m/s^2'))
+        # Practical ranges (core/settings.py): beyond them a motion lasts hours or the
+        # arithmetic overflows.
+        validate_fields(self)
 
 
 # -- laws: s(t) and its derivatives -----------------------------------------------------------

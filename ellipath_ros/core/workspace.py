@@ -31,16 +31,13 @@ import numbers
 
 import numpy as np
 
-from .errors import InvalidInputError, require_range, WorkspaceError
+from .errors import InvalidInputError, WorkspaceError
+from .settings import default_of, SETTING_BY_NAME, validate_fields
 
 # Default tolerance of the comparisons [m]: forward kinematics of inverse kinematics returns
 # a point within ~1e-15 m, so a place on the boundary must not count as outside. Nothing
 # physical; the planner allows the executed motion more (see planner.py).
 WORKSPACE_TOLERANCE = 1e-9
-# Largest radius and height magnitude a workspace may be given [m]; no Delta robot is larger.
-WORKSPACE_SIZE_LIMIT = 10.0
-# Smallest workspace radius [m]: below a millimetre nothing can be planned.
-MIN_WORKSPACE_RADIUS = 0.001
 BOX_FIELDS = ('xmin', 'ymin', 'zmin', 'xmax', 'ymax', 'zmax')
 
 
@@ -91,8 +88,8 @@ def boxes_from_flat(values, name='keep_out_boxes'):
     for index, value in enumerate(flat):
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise InvalidInputError(f'{name}[{index}]: expected a number, got {value!r}')
-        coordinates.append(require_range(f'{name}[{index}]', value, -WORKSPACE_SIZE_LIMIT,
-                                         WORKSPACE_SIZE_LIMIT, unit='m'))
+        coordinates.append(SETTING_BY_NAME['keep_out_boxes'].check_number(
+            value, f'{name}[{index}]'))
     boxes = tuple(tuple(coordinates[start:start + 6])
                   for start in range(0, len(coordinates), 6))
     for index, box in enumerate(boxes):
@@ -112,29 +109,24 @@ class SafeWorkspace:
     Parameters
     ----------
     radius : float
-        Largest distance of the TCP from the base axis (the z axis) [m], in [0.001, 10].
+        Largest distance of the TCP from the base axis (the z axis) [m]
+        (``workspace_radius`` in :mod:`.settings`, as the ranges of all fields).
     z_min, z_max : float
-        Lowest and highest TCP height [m], in [-10, 10], ``z_min < z_max``.
+        Lowest and highest TCP height [m], ``z_min < z_max``.
     keep_out_boxes : sequence
         Axis-aligned boxes the TCP must not enter, ``[xmin, ymin, zmin, xmax, ymax, zmax]``
         each [m], flat (6 numbers per box) or grouped; stored as a tuple of 6-tuples.
 
     """
 
-    radius: float = 0.4
-    z_min: float = -1.0
-    z_max: float = -0.55
-    keep_out_boxes: tuple = ()
+    radius: float = default_of('workspace_radius')
+    z_min: float = default_of('workspace_z_min')
+    z_max: float = default_of('workspace_z_max')
+    keep_out_boxes: tuple = default_of('keep_out_boxes')
 
     def __post_init__(self):
         """Check the bounds and store them as floats, the boxes as a tuple of 6-tuples."""
-        object.__setattr__(self, 'radius', require_range(
-            'workspace_radius', self.radius, MIN_WORKSPACE_RADIUS, WORKSPACE_SIZE_LIMIT,
-            unit='m'))
-        for field, name in (('z_min', 'workspace_z_min'), ('z_max', 'workspace_z_max')):
-            object.__setattr__(self, field, require_range(
-                name, getattr(self, field), -WORKSPACE_SIZE_LIMIT, WORKSPACE_SIZE_LIMIT,
-                unit='m'))
+        validate_fields(self)
         if not self.z_min < self.z_max:
             raise InvalidInputError(
                 f'workspace_z_max: expected a value > workspace_z_min = {self.z_min:g} m, '
