@@ -65,7 +65,8 @@ def _add_plan_arguments(parser):
                                 default=list(setting.default), metavar='V',
                                 help=f'{text} (default: {list(setting.default) or "none"})')
         else:
-            parser.add_argument(setting.cli, dest=setting.name,
+            metavar = '{' + ','.join(setting.choices) + '}' if setting.choices else 'X'
+            parser.add_argument(setting.cli, dest=setting.name, metavar=metavar,
                                 type=_OPTION_TYPES[setting.kind], default=setting.default,
                                 help=f'{text} (default: %(default)s)')
     parser.add_argument('--json', action='store_true', help='print one JSON object')

@@ -29,6 +29,7 @@ from .geometry import ARC_POLICIES, ArcPolicy, EllipticArc, PickPlacePath, plan_
 from .joint_trajectory import JointTrajectoryData, TrajectoryRejectedError, validate_jtc
 from .kinematics import DeltaGeometry, forward_kinematics, inverse_kinematics, JointLimits
 from .planner import CyclePlan, LegPlan, plan_cycle, plan_transfer, PlannerConfig
+from .settings import default_values, Setting, SETTINGS, validate
 from .timing import CartesianLimits, PROFILES, time_motion, TimedMotion
 
 __all__ = [
@@ -38,6 +39,11 @@ __all__ = [
     'PlannerConfig',
     'CyclePlan',
     'LegPlan',
+    # Every setting (name, default, unit, range, description): the one table.
+    'SETTINGS',
+    'Setting',
+    'default_values',
+    'validate',
     # The path (Choe et al.'s ellipse between two vertical segments).
     'plan_path',
     'ARC_POLICIES',

@@ -373,11 +373,6 @@ def default_of(name):
     return SETTING_BY_NAME[name].default
 
 
-def choices_of(name):
-    """Return the allowed values of the string setting ``name``."""
-    return SETTING_BY_NAME[name].choices
-
-
 # Owner class name -> its rows of a scalar kind, which validate_fields checks.
 _SCALARS_BY_OWNER = {
     owner: tuple(setting for setting in SETTINGS if setting.owner == owner

@@ -37,8 +37,8 @@ from .settings import default_of, SETTING_BY_NAME, validate_fields
 # Default tolerance of the comparisons [m]: forward kinematics of inverse kinematics returns
 # a point within ~1e-15 m, so a place on the boundary must not count as outside. Nothing
 # physical; the planner allows the executed motion more (see planner.py).
-WORKSPACE_TOLERANCE = 1e-9
-BOX_FIELDS = ('xmin', 'ymin', 'zmin', 'xmax', 'ymax', 'zmax')
+_TOLERANCE = 1e-9
+_BOX_FIELDS = ('xmin', 'ymin', 'zmin', 'xmax', 'ymax', 'zmax')
 
 
 def _fmt(values):
@@ -80,7 +80,7 @@ def boxes_from_flat(values, name='keep_out_boxes'):
             flat.extend(item)
         else:
             flat.append(item)
-    if len(flat) % len(BOX_FIELDS):
+    if len(flat) % len(_BOX_FIELDS):
         raise InvalidInputError(
             f'{name}: expected a multiple of 6 values ([xmin, ymin, zmin, xmax, ymax, zmax] '
             f'per box), got {len(flat)} values')
@@ -95,8 +95,9 @@ def boxes_from_flat(values, name='keep_out_boxes'):
     for index, box in enumerate(boxes):
         for axis in range(3):
             if not box[axis] < box[axis + 3]:
+                low, high = _BOX_FIELDS[axis], _BOX_FIELDS[axis + 3]
                 raise InvalidInputError(
-                    f'{name}[{index}]: expected {BOX_FIELDS[axis]} < {BOX_FIELDS[axis + 3]}, '
+                    f'{name}[{index}]: expected {low} < {high}, '
                     f'got {box[axis]:g} and {box[axis + 3]:g} m')
     return boxes
 
@@ -151,7 +152,7 @@ class SafeWorkspace:
         inside = (points[:, None, :] > low[None]) & (points[:, None, :] < high[None])
         return inside.all(axis=2)
 
-    def contains(self, points, tolerance=WORKSPACE_TOLERANCE):
+    def contains(self, points, tolerance=_TOLERANCE):
         """
         Tell, point by point, whether the TCP may be there.
 
@@ -179,7 +180,7 @@ class SafeWorkspace:
                   & ~self._inside_boxes(array, tolerance).any(axis=1))
         return ok[0] if single else ok
 
-    def check(self, points, name='points', times=None, tolerance=WORKSPACE_TOLERANCE):
+    def check(self, points, name='points', times=None, tolerance=_TOLERANCE):
         """
         Raise :class:`WorkspaceError` naming the first point outside the safe workspace.
 
