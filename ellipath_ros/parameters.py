@@ -19,7 +19,7 @@ The table (:data:`ellipath_ros.core.settings.SETTINGS`) holds every name, type, 
 unit, range and description; this module only turns its rows into ROS parameter descriptors
 (:func:`parameter_declarations`) and a complete set of values into :class:`NodeSettings`
 (:func:`build_settings`). ``config/ellipath.yaml`` and the README's table are generated from
-the same rows (``python -m ellipath_ros.settings_docs``).
+the same rows (``scripts/settings_docs.py``).
 
 Open bounds: rcl's ``FloatingPointRange`` has closed bounds only, so a range such as
 ``(0, 5]`` is declared as ``[0, 5]`` and the open end is refused by :func:`build_settings`,

@@ -112,12 +112,15 @@ def render_yaml():
 
 def render_readme_table():
     """Return the README's parameter table, between its markers."""
-    rows = ['| name | default | unit | allowed | core field | description |',
-            '|---|---|---|---|---|---|']
+    rows = ['| name | type | default | unit | allowed | core field | description |',
+            '|---|---|---|---|---|---|---|']
     for setting in SETTINGS:
         name = f'`{setting.name}`' + (' (read-only)' if setting.read_only else '')
         field = f'`{setting.owner}.{setting.attribute}`' if setting.owner else 'node'
-        cells = (name, f'`{yaml_value(setting.default)}`', setting.unit, setting.allowed,
+        allowed = setting.allowed
+        if setting.kind == 'double_array' and allowed:
+            allowed = f'each value in {allowed}'
+        cells = (name, setting.kind, f'`{yaml_value(setting.default)}`', setting.unit, allowed,
                  field, setting.description)
         rows.append('| ' + ' | '.join(cell.replace('|', '\\|') for cell in cells) + ' |')
     return README_BEGIN + '\n'.join(rows) + '\n' + README_END

@@ -232,12 +232,12 @@ def test_readme_parameter_table_is_the_tables():
     assert len(rows) == len(SETTINGS)
     for row, setting in zip(rows, SETTINGS):
         cells = [cell.strip().replace('\\|', '|') for cell in row.strip('|').split(' | ')]
-        name, default, unit, allowed, field, description = cells
+        name, kind, default, unit, allowed, field, description = cells
         assert name.split()[0] == f'`{setting.name}`'
         assert ('(read-only)' in name) == setting.read_only
         assert yaml.safe_load(default.strip('`')) == default_values()[setting.name]
-        assert (unit, allowed, description) == (setting.unit, setting.allowed,
-                                                setting.description)
+        assert (kind, unit, description) == (setting.kind, setting.unit, setting.description)
+        assert allowed.endswith(setting.allowed)
         assert field == (f'`{setting.owner}.{setting.attribute}`' if setting.owner else 'node')
 
 

@@ -24,7 +24,7 @@ node's own settings). Everything else follows from it:
 * ``ellipath_ros/parameters.py`` declares one ROS parameter per row;
 * ``ellipath`` (``cli.py``) offers an option for each row that names one;
 * ``config/ellipath.yaml`` and the README's parameter table are generated from it
-  (``python -m ellipath_ros.settings_docs``) and a test keeps them in step.
+  (``scripts/settings_docs.py``) and a test keeps them in step.
 
 No ROS here: the table is plain data.
 """
@@ -354,8 +354,9 @@ def validate_fields(instance):
     """
     Check and convert, in place, every scalar field of a frozen dataclass that a row feeds.
 
-    The rows are those whose ``owner`` is the instance's class name. Array fields are left to
-    the owner (their sizes and structure are its own).
+    The rows are those whose ``owner`` is the name of the instance's class (or of the nearest
+    base class that has rows). Array fields are left to the owner (their sizes and structure
+    are its own).
 
     Raises
     ------
@@ -363,7 +364,9 @@ def validate_fields(instance):
         The first field out of its row's range; the message names the setting.
 
     """
-    for setting in _SCALARS_BY_OWNER.get(type(instance).__name__, ()):
+    owner = next((cls.__name__ for cls in type(instance).__mro__
+                  if cls.__name__ in _SCALARS_BY_OWNER), None)
+    for setting in _SCALARS_BY_OWNER.get(owner, ()):
         value = setting.check(getattr(instance, setting.attribute))
         object.__setattr__(instance, setting.attribute, value)
 
