@@ -41,6 +41,8 @@ from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import JointLimits
 from ellipath_ros.core.planner import PlannerConfig
 from ellipath_ros.core.settings import default_values
+from ellipath_ros.core.settings import KINDS
+from ellipath_ros.core.settings import SECTIONS
 from ellipath_ros.core.settings import SETTING_BY_NAME
 from ellipath_ros.core.settings import SETTINGS
 from ellipath_ros.core.settings import validate
@@ -290,3 +292,15 @@ def test_an_array_setting_checks_each_value_against_the_range():
     with pytest.raises(InvalidInputError, match="frame_id: expected a non-empty name, got ''"):
         validate('frame_id', '')
     assert math.isclose(SETTING_BY_NAME['joint_max'].high, math.pi)
+
+
+def test_every_row_is_well_formed():
+    assert len({setting.name for setting in SETTINGS}) == len(SETTINGS)
+    for setting in SETTINGS:
+        assert setting.kind in KINDS and setting.section in SECTIONS, setting.name
+        assert setting.description and not setting.description.endswith('.'), setting.name
+        if setting.kind in ('double', 'integer'):
+            assert setting.low < setting.high, setting.name
+            validate(setting.name, setting.default)
+        if setting.owner:
+            assert setting.owner in OWNERS and setting.attribute, setting.name
