@@ -304,3 +304,11 @@ def test_every_row_is_well_formed():
             validate(setting.name, setting.default)
         if setting.owner:
             assert setting.owner in OWNERS and setting.attribute, setting.name
+
+
+def test_the_readmes_plan_commands_run_as_pasted(capsys):
+    readme = (ROOT / 'README.md').read_text()
+    commands = re.findall(r'^ellipath plan (.*?)(?:\s+#.*)?$', readme, re.M)
+    assert len(commands) >= 4
+    for command in commands:
+        assert cli.main(['plan', *command.split()]) == 0, (command, capsys.readouterr().err)
