@@ -27,39 +27,12 @@ import math
 import sys
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.geometry import ARC_POLICIES, JOINS
-from ellipath_ros.core.planner import CORE_DEFAULTS, plan_transfer, PlannerConfig
-from ellipath_ros.core.timing import PROFILES
+from ellipath_ros.core.planner import plan_transfer, PlannerConfig
+from ellipath_ros.core.settings import SETTINGS
 
-# CLI option -> flat parameter name (the node's); defaults come from CORE_DEFAULTS.
-_PLAN_OPTIONS = (
-    ('--pick-clearance', 'pick_clearance', float, 'vertical segment at the pick [m]'),
-    ('--place-clearance', 'place_clearance', float, 'vertical segment at the place [m]'),
-    ('--arc', 'arc_policy', str, 'how the ellipse is chosen: ' + ', '.join(ARC_POLICIES)),
-    ('--apex-clearance', 'apex_clearance', float,
-     'apex height above the higher tangent point, arc apex_clearance [m]'),
-    ('--min-radius', 'min_radius', float, 'smallest radius of curvature, arc min_radius [m]'),
-    ('--join', 'join', str, 'line-to-arc joins: ' + ', '.join(JOINS)),
-    ('--join-tolerance', 'join_tolerance', float,
-     "largest distance of the g2 path from the paper's [m]"),
-    ('--profile', 'profile', str, 'motion profile: ' + ', '.join(PROFILES)),
-    ('--r', 'curvature_r', float, "the paper's coefficient r, curvature profile [rad/m]"),
-    ('--max-speed', 'max_speed', float, 'TCP speed limit [m/s]'),
-    ('--max-accel', 'max_accel', float, 'TCP acceleration limit (vector norm) [m/s^2]'),
-    ('--max-jerk', 'max_jerk', float, 'TCP jerk limit (vector norm) [m/s^3]'),
-    ('--max-accel-jump', 'max_accel_jump', float,
-     'allowed acceleration step at T1/T2 (line-to-ellipse join) [m/s^2]'),
-    ('--max-joint-velocity', 'max_joint_velocity', float, 'joint speed limit [rad/s]'),
-    ('--max-joint-accel', 'max_joint_accel', float, 'joint acceleration limit [rad/s^2]'),
-    ('--knot-tolerance', 'knot_tolerance', float,
-     'largest TCP deviation of the controller interpolation between knots [m]'),
-    ('--output-mode', 'output_mode', str, 'joint trajectory as knots or samples'),
-    ('--sample-period', 'sample_period', float, 'period of samples output [s]'),
-    ('--workspace-radius', 'workspace_radius', float,
-     'safe workspace: largest TCP distance from the base axis [m]'),
-    ('--workspace-z-min', 'workspace_z_min', float, 'safe workspace: lowest TCP height [m]'),
-    ('--workspace-z-max', 'workspace_z_max', float, 'safe workspace: highest TCP height [m]'),
-)
+# Options of ``plan`` and ``plot``: every row of the settings table that names one.
+_PLAN_SETTINGS = tuple(setting for setting in SETTINGS if setting.cli)
+_OPTION_TYPES = {'double': float, 'integer': int, 'string': str}
 
 
 class _ArgumentsRejected(Exception):
@@ -82,19 +55,27 @@ def _add_plan_arguments(parser):
                         help='pick point P1 in the base frame [m]')
     parser.add_argument('--place', nargs=3, type=float, required=True, metavar=('X', 'Y', 'Z'),
                         help='place point P2 in the base frame [m]')
-    for option, name, kind, text in _PLAN_OPTIONS:
-        parser.add_argument(option, dest=name, type=kind, default=CORE_DEFAULTS[name],
-                            help=f'{text} (default: %(default)s)')
-    parser.add_argument('--keep-out-boxes', nargs='*', type=float, default=[],
-                        metavar='V', help='boxes the TCP must not enter, 6 values each: xmin '
-                        'ymin zmin xmax ymax zmax [m] (default: none)')
+    for setting in _PLAN_SETTINGS:
+        unit = f' [{setting.unit}]' if setting.unit else ''
+        allowed = f', {setting.allowed}' if setting.allowed else ''
+        # argparse formats help with %: a literal one must be doubled.
+        text = f'{setting.description}{unit}{allowed}'.replace('%', '%%')
+        if setting.kind == 'double_array':
+            parser.add_argument(setting.cli, dest=setting.name, nargs='*', type=float,
+                                default=list(setting.default), metavar='V',
+                                help=f'{text} (default: {list(setting.default) or "none"})')
+        else:
+            metavar = '{' + ','.join(setting.choices) + '}' if setting.choices else 'X'
+            parser.add_argument(setting.cli, dest=setting.name, metavar=metavar,
+                                type=_OPTION_TYPES[setting.kind], default=setting.default,
+                                help=f'{text} (default: %(default)s)')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
 
 
 def _config_from(args):
     """Build the planner config from the parsed options (validated by the core)."""
-    values = {name: getattr(args, name) for _, name, _, _ in _PLAN_OPTIONS}
-    return PlannerConfig.from_flat({**values, 'keep_out_boxes': args.keep_out_boxes})
+    return PlannerConfig.from_flat({setting.name: getattr(args, setting.name)
+                                    for setting in _PLAN_SETTINGS})
 
 
 def plan_result(args):

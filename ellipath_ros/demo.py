@@ -55,7 +55,7 @@ import threading
 import time
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.timing import PROFILES
+from ellipath_ros.core.motion import PROFILES
 from ellipath_ros.demo_report import evaluate_run
 from ellipath_ros.demo_report import format_report
 from ellipath_ros.demo_report import mm_text

@@ -104,7 +104,7 @@ class ReceivedTrajectory:
 
     """
 
-    data: object
+    data: JointTrajectoryData | None
     stamp: float
     receive_time: float
     problems: tuple = ()

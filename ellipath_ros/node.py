@@ -88,8 +88,8 @@ from ellipath_ros.core.sequencing import PosePairing
 from ellipath_ros.core.sequencing import QueueFullError
 from ellipath_ros.core.sequencing import Sequencer
 from ellipath_ros.parameters import build_settings
+from ellipath_ros.parameters import parameter_declarations
 from ellipath_ros.parameters import PARAMETER_NAMES
-from ellipath_ros.parameters import PARAMETER_TABLE
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -171,8 +171,7 @@ class EllipathNode(Node):
 
     def __init__(self, **node_options):
         super().__init__(NODE_NAME, **node_options)
-        declared = self.declare_parameters(
-            '', [(spec.name, spec.default, spec.descriptor()) for spec in PARAMETER_TABLE])
+        declared = self.declare_parameters('', parameter_declarations())
         self._settings = build_settings({parameter.name: parameter.value
                                          for parameter in declared})
         # A change is validated before it is stored and applied once it is: rclpy may still

@@ -19,7 +19,6 @@ import math
 
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import UnreachableError
-from ellipath_ros.core.kinematics import cartesian_velocities
 from ellipath_ros.core.kinematics import check_reachable
 from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -245,8 +244,6 @@ def test_rates_match_finite_differences_of_inverse_kinematics():
     assert np.abs(qdot).max() > 1.0 and np.abs(qddot).max() > 10.0  # a real test
     assert np.abs(qdot - qdot_fd).max() <= 1e-5 * np.abs(qdot).max()
     assert np.abs(qddot - qddot_fd).max() <= 1e-5 * np.abs(qddot).max()
-    np.testing.assert_allclose(cartesian_velocities(q, qdot, GEOMETRY), velocity,
-                               rtol=0.0, atol=1e-12)
 
 
 def test_rates_of_a_single_sample_keep_its_shape():

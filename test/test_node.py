@@ -46,9 +46,9 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.settings import default_values
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings
-from ellipath_ros.parameters import parameter_defaults
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
@@ -71,7 +71,7 @@ PASSES = 2e-4  # m, the TCP passes through a point: knot_tolerance (0.1 mm) plus
 NAMESPACE = f'/ellipath_test_{os.getpid()}'
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-GEOMETRY = build_settings(parameter_defaults()).planner.geometry
+GEOMETRY = build_settings(default_values()).planner.geometry
 JOINT_NAMES = ['joint_1', 'joint_2', 'joint_3']
 HOME = (0.0, 0.0, -0.8)
 PICK = (0.10, 0.05, -0.85)
@@ -502,7 +502,7 @@ def test_a_valid_parameter_change_applies(make_harness):
 @pytest.mark.parametrize('file_name', ['ellipath.yaml', 'paper.yaml'])
 def test_the_parameter_files_load_and_plan(make_harness, file_name):
     harness = make_harness(cli_args=['--ros-args', '--params-file', str(CONFIG / file_name)])
-    expected = parameter_defaults()
+    expected = default_values()
     if file_name == 'paper.yaml':
         expected.update(arc_policy='paper', join='paper', profile='curvature', curvature_r=0.77)
     for name, value in expected.items():

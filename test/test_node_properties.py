@@ -34,9 +34,9 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from ellipath_ros.conversions import joint_trajectory_data
+from ellipath_ros.core.settings import default_values
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings
-from ellipath_ros.parameters import parameter_defaults
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
@@ -55,7 +55,7 @@ ROS_DOMAIN_OFFSET = 6  # see conftest.py
 NAMESPACE = f'/ellipath_properties_{os.getpid()}'
 EXAMPLES = 1200 * SCALE  # each example sends 1 to 6 messages or parameter changes
 DRAIN_TIMEOUT = 20.0  # s, for the queue to empty at the end before it is cleared
-DEFAULTS = parameter_defaults()
+DEFAULTS = default_values()
 # The loosest configuration in force: valid parameter changes below only tighten it.
 CONFIG = build_settings(DEFAULTS).planner
 PAIR_IN_MESSAGE = re.compile(r'\bpair (\d+)\b')

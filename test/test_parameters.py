@@ -18,11 +18,13 @@ import math
 from pathlib import Path
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.planner import CORE_DEFAULTS
+from ellipath_ros.core.settings import default_values
+from ellipath_ros.core.settings import SETTINGS
 from ellipath_ros.parameters import build_settings
-from ellipath_ros.parameters import parameter_defaults
+from ellipath_ros.parameters import descriptor
+from ellipath_ros.parameters import parameter_declarations
 from ellipath_ros.parameters import PARAMETER_NAMES
-from ellipath_ros.parameters import PARAMETER_TABLE
+from ellipath_ros.parameters import ROS_TYPES
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter import parameter_dict_from_yaml_file
@@ -42,55 +44,58 @@ def _yaml_parameters(name):
     return document['/**']['ros__parameters']
 
 
-def test_table_holds_every_core_and_node_parameter_once():
+def test_one_parameter_per_setting_and_the_node_keys_have_no_core_field():
+    assert PARAMETER_NAMES == tuple(setting.name for setting in SETTINGS)
     assert len(PARAMETER_NAMES) == len(set(PARAMETER_NAMES))
-    core = {spec.name for spec in PARAMETER_TABLE if spec.core}
-    assert core == set(CORE_DEFAULTS)
-    assert set(PARAMETER_NAMES) - core == NODE_KEYS
+    assert {setting.name for setting in SETTINGS if not setting.owner} == NODE_KEYS
+    declared = parameter_declarations()
+    assert [name for name, _, _ in declared] == list(PARAMETER_NAMES)
+    for (name, default, _), expected in zip(declared, default_values().values()):
+        assert default == expected, name
 
 
-def test_core_defaults_are_taken_from_the_core():
-    for spec in PARAMETER_TABLE:
-        if spec.core:
-            expected = CORE_DEFAULTS[spec.name]
-            if isinstance(expected, (list, tuple)):
-                expected = list(expected)
-            assert spec.default == expected, spec.name
-
-
-@pytest.mark.parametrize('spec', PARAMETER_TABLE, ids=lambda spec: spec.name)
-def test_every_row_is_complete_and_consistent(spec):
-    descriptor = spec.descriptor()
-    if spec.default == []:
+@pytest.mark.parametrize('setting', SETTINGS, ids=lambda setting: setting.name)
+def test_every_descriptor_follows_its_row(setting):
+    result = descriptor(setting)
+    default = default_values()[setting.name]
+    if default == []:
         # rclpy types an empty list as a byte array: the row must accept any type.
-        assert descriptor.dynamic_typing
+        assert result.dynamic_typing
     else:
-        assert Parameter.Type.from_parameter_value(spec.default) == spec.type_
-        assert not descriptor.dynamic_typing
-    assert descriptor.name == spec.name
-    assert descriptor.type == spec.type_.value
-    assert len(descriptor.description) > 10
-    if spec.unit:
-        assert descriptor.description.endswith(f'[{spec.unit}]')
-    if spec.type_ == Parameter.Type.DOUBLE:
-        assert spec.unit, 'every float parameter has a unit'
-        (interval,) = descriptor.floating_point_range
-        assert interval.from_value <= spec.default <= interval.to_value
-    if spec.type_ == Parameter.Type.INTEGER:
-        (interval,) = descriptor.integer_range
-        assert interval.from_value <= spec.default <= interval.to_value
-    if spec.choices:
-        assert spec.default in spec.choices
-        assert descriptor.additional_constraints == 'one of: ' + ', '.join(spec.choices)
+        assert Parameter.Type.from_parameter_value(default) == ROS_TYPES[setting.kind]
+        assert not result.dynamic_typing
+    assert result.name == setting.name
+    assert result.type == ROS_TYPES[setting.kind].value
+    assert result.description.startswith(setting.description)
+    if setting.unit:
+        assert f'[{setting.unit}]' in result.description
+    if setting.kind == 'double':
+        assert setting.unit, 'every float parameter has a unit'
+        (interval,) = result.floating_point_range
+        # rcl ranges are closed: the declared one is the closure of the row's range.
+        assert (interval.from_value, interval.to_value) == (setting.low, setting.high)
+        assert interval.from_value <= default <= interval.to_value
+    if setting.kind == 'integer':
+        (interval,) = result.integer_range
+        assert (interval.from_value, interval.to_value) == (setting.low, setting.high)
+    for bound in setting.open_bounds:
+        # The description says which declared bound the node refuses.
+        assert f'{bound:g} excluded' in result.description
+        assert f'{bound:g} excluded' in result.additional_constraints
+    if setting.allowed and setting.kind != 'double_array':
+        assert result.additional_constraints.startswith(setting.allowed)
+    if setting.choices:
+        assert default in setting.choices
+        assert result.additional_constraints == 'one of: ' + ', '.join(setting.choices)
 
 
 def test_read_only_parameters():
-    read_only = {spec.name for spec in PARAMETER_TABLE if spec.descriptor().read_only}
+    read_only = {name for name, _, result in parameter_declarations() if result.read_only}
     assert read_only == {'frame_id', 'joint_names', 'queue_depth'}
 
 
 def test_defaults_of_the_issue():
-    defaults = parameter_defaults()
+    defaults = default_values()
     assert defaults['frame_id'] == 'base_link'
     assert defaults['pairing'] == 'stamp'
     assert defaults['header_stamp'] == 'ahead'
@@ -104,13 +109,13 @@ def test_defaults_of_the_issue():
 
 def test_ellipath_yaml_lists_every_parameter_at_its_default():
     values = _yaml_parameters('ellipath.yaml')
-    defaults = parameter_defaults()
+    defaults = default_values()
     assert list(values) == list(PARAMETER_NAMES), 'same parameters, in table order'
-    for spec in PARAMETER_TABLE:
-        value = values[spec.name]
+    for setting in SETTINGS:
+        value = values[setting.name]
         if value != []:
-            assert Parameter.Type.from_parameter_value(value) == spec.type_, spec.name
-        assert value == defaults[spec.name], spec.name
+            assert Parameter.Type.from_parameter_value(value) == ROS_TYPES[setting.kind]
+        assert value == defaults[setting.name], setting.name
 
 
 def test_parameter_files_parse_with_rclpy():
@@ -123,12 +128,12 @@ def test_paper_yaml_selects_the_papers_method():
     values = _yaml_parameters('paper.yaml')
     assert values == {'arc_policy': 'paper', 'join': 'paper', 'profile': 'curvature',
                       'curvature_r': 0.77}
-    settings = build_settings({**parameter_defaults(), **values})
+    settings = build_settings({**default_values(), **values})
     assert settings.planner.profile == 'curvature'
 
 
 def test_defaults_build_valid_settings():
-    settings = build_settings(parameter_defaults())
+    settings = build_settings(default_values())
     assert settings.frame_id == 'base_link'
     assert settings.home_position == (0.0, 0.0, -0.8)
     assert settings.queue_depth == 10 and isinstance(settings.queue_depth, int)
@@ -156,11 +161,11 @@ def test_defaults_build_valid_settings():
 ])
 def test_an_invalid_set_is_rejected_naming_the_parameter(name, value, reason):
     with pytest.raises(EllipathError, match=reason):
-        build_settings({**parameter_defaults(), name: value})
+        build_settings({**default_values(), name: value})
 
 
 def test_a_missing_parameter_is_named():
-    values = parameter_defaults()
+    values = default_values()
     del values['max_jerk']
     with pytest.raises(EllipathError, match='max_jerk'):
         build_settings(values)

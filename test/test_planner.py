@@ -16,7 +16,8 @@
 from ellipath_ros.core.errors import InvalidInputError, LimitError, UnreachableError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate, validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics
-from ellipath_ros.core.planner import CORE_DEFAULTS, plan_cycle, plan_transfer, PlannerConfig
+from ellipath_ros.core.planner import plan_cycle, plan_transfer, PlannerConfig
+from ellipath_ros.core.settings import default_values
 import numpy as np
 import pytest
 
@@ -33,17 +34,18 @@ def dense(trajectory, period=2e-4):
 
 
 def test_defaults_are_the_design_defaults():
-    assert CORE_DEFAULTS['max_speed'] == 4.0 and CORE_DEFAULTS['max_accel'] == 50.0
-    assert CORE_DEFAULTS['max_jerk'] == 5000.0
-    assert CORE_DEFAULTS['max_joint_velocity'] == 10.0
-    assert CORE_DEFAULTS['max_joint_accel'] == 200.0
-    assert CORE_DEFAULTS['knot_tolerance'] == 1e-4
-    assert CORE_DEFAULTS['pick_clearance'] == CORE_DEFAULTS['place_clearance'] == 0.025
-    assert (CORE_DEFAULTS['base_radius'], CORE_DEFAULTS['effector_radius'],
-            CORE_DEFAULTS['upper_arm'], CORE_DEFAULTS['forearm']) == (0.2, 0.045, 0.35, 0.8)
-    assert CORE_DEFAULTS['arc_policy'] == 'paper'
-    assert CORE_DEFAULTS['profile'] == 'time_optimal'
-    assert CORE_DEFAULTS['joint_names'] == ['joint_1', 'joint_2', 'joint_3']
+    defaults = default_values(core_only=True)
+    assert defaults['max_speed'] == 4.0 and defaults['max_accel'] == 50.0
+    assert defaults['max_jerk'] == 5000.0
+    assert defaults['max_joint_velocity'] == 10.0
+    assert defaults['max_joint_accel'] == 200.0
+    assert defaults['knot_tolerance'] == 1e-4
+    assert defaults['pick_clearance'] == defaults['place_clearance'] == 0.025
+    assert (defaults['base_radius'], defaults['effector_radius'],
+            defaults['upper_arm'], defaults['forearm']) == (0.2, 0.045, 0.35, 0.8)
+    assert defaults['arc_policy'] == 'paper'
+    assert defaults['profile'] == 'time_optimal'
+    assert defaults['joint_names'] == ['joint_1', 'joint_2', 'joint_3']
 
 
 def test_from_flat_rejects_unknown_and_invalid_values():

@@ -43,16 +43,16 @@ from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import reachable
-from ellipath_ros.core.planner import CORE_DEFAULTS
 from ellipath_ros.core.planner import EXECUTED_WORKSPACE_TOLERANCE
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import plan_transfer
 from ellipath_ros.core.planner import PlannerConfig
 from ellipath_ros.core.planner import QUINTIC_CHECK_SAMPLES
 from ellipath_ros.core.planner import WORKSPACE_CHECK_PERIOD
+from ellipath_ros.core.settings import CORE_NAMES
+from ellipath_ros.core.settings import default_values
 from ellipath_ros.core.workspace import SafeWorkspace
 from ellipath_ros.parameters import build_settings
-from ellipath_ros.parameters import parameter_defaults
 from hypothesis import assume
 from hypothesis import event
 from hypothesis import given
@@ -252,13 +252,12 @@ def test_validate_jtc_rejects_bad_joint_names_by_name(names):
 
 # --- parameter sets ------------------------------------------------------------------------
 
-CORE_NAMES = sorted(CORE_DEFAULTS)
-NODE_NAMES = sorted(set(parameter_defaults()) - set(CORE_DEFAULTS))
+NODE_NAMES = sorted(set(default_values()) - set(CORE_NAMES))
 
 
 def _plausible(name):
     """Return values for parameter ``name``: around its default, hostile, or of a wrong type."""
-    default = CORE_DEFAULTS.get(name, parameter_defaults()[name])
+    default = default_values()[name]
     if isinstance(default, float):
         around = (st.floats(min(default * 0.5, default * 2.0), max(default * 0.5, default * 2.0))
                   if default else st.floats(-1.0, 1.0))
@@ -290,7 +289,7 @@ def parameter_changes(draw, names):
 
 
 @settings(max_examples=MEDIUM)
-@given(changes=parameter_changes(CORE_NAMES))
+@given(changes=parameter_changes(sorted(CORE_NAMES)))
 def test_planner_config_from_flat_is_valid_or_names_a_changed_parameter(changes):
     try:
         config = PlannerConfig.from_flat(changes)
@@ -301,10 +300,10 @@ def test_planner_config_from_flat_is_valid_or_names_a_changed_parameter(changes)
 
 
 @settings(max_examples=MEDIUM)
-@given(changes=parameter_changes(CORE_NAMES + NODE_NAMES))
+@given(changes=parameter_changes(sorted(CORE_NAMES) + NODE_NAMES))
 def test_build_settings_is_valid_or_names_a_changed_parameter(changes):
     try:
-        result = build_settings({**parameter_defaults(), **changes})
+        result = build_settings({**default_values(), **changes})
     except EllipathError as error:
         _assert_names(error, *_named_by(changes))
         return

@@ -24,10 +24,10 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import quintic_positions
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import reachable
-from ellipath_ros.core.planner import CORE_DEFAULTS
 from ellipath_ros.core.planner import EXECUTED_WORKSPACE_TOLERANCE
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.settings import default_values
 from ellipath_ros.core.workspace import boxes_from_flat
 from ellipath_ros.core.workspace import SafeWorkspace
 import numpy as np
@@ -147,7 +147,7 @@ def test_boxes_flat_or_grouped_are_the_same_and_none_is_empty():
 
 
 def test_the_planner_config_takes_the_flat_parameters():
-    assert CORE_DEFAULTS['keep_out_boxes'] == []
+    assert default_values()['keep_out_boxes'] == []
     config = _config(workspace_radius=0.3, workspace_z_min=-0.9, workspace_z_max=-0.6,
                      keep_out_boxes=[0.0, 0.0, -0.9, 0.1, 0.1, -0.8])
     assert config.workspace == SafeWorkspace(0.3, -0.9, -0.6, ((0.0, 0.0, -0.9, 0.1, 0.1, -0.8),))

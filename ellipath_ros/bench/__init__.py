@@ -130,8 +130,8 @@ def run_bench(mode='full', pairs=None, e2e_pairs=None, seed=None, domain_id=None
         TOPP-RA is not installed (``pip install .[bench]``).
 
     """
+    from ellipath_ros.core.settings import default_values
     from ellipath_ros.parameters import build_settings
-    from ellipath_ros.parameters import parameter_defaults
 
     began = time.perf_counter()
     seed = DEFAULT_SEED if seed is None else seed
@@ -140,7 +140,7 @@ def run_bench(mode='full', pairs=None, e2e_pairs=None, seed=None, domain_id=None
     budgets = sizes['budget_s']
     if domain_id is None:
         domain_id = int(os.environ.get('ROS_DOMAIN_ID') or DEFAULT_DOMAIN_ID)
-    settings = build_settings(parameter_defaults())
+    settings = build_settings(default_values())
     config = settings.planner
     result = {'mode': mode, 'machine': machine()}
     # TOPP-RA first: a missing extra fails before minutes of measuring.

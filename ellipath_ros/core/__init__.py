@@ -31,6 +31,7 @@ from .kinematics import DeltaGeometry, forward_kinematics, inverse_kinematics, J
 from .limits import CartesianLimits
 from .motion import PROFILES, TimedMotion
 from .planner import CyclePlan, LegPlan, plan_cycle, plan_transfer, PlannerConfig
+from .settings import default_values, Setting, SETTINGS, validate
 from .timing import time_motion
 
 __all__ = [
@@ -40,6 +41,11 @@ __all__ = [
     'PlannerConfig',
     'CyclePlan',
     'LegPlan',
+    # Every setting (name, default, unit, range, description): the one table.
+    'SETTINGS',
+    'Setting',
+    'default_values',
+    'validate',
     # The path (Choe et al.'s ellipse between two vertical segments).
     'plan_path',
     'ARC_POLICIES',

@@ -49,6 +49,7 @@ import math
 import numpy as np
 
 from .errors import DegenerateGeometryError, InvalidInputError, require_point, require_range
+from .settings import validate_fields
 
 ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 # How the vertical lines meet the arc: a curvature-continuous transition, or the paper's step.
@@ -128,11 +129,7 @@ class ArcPolicy:
     min_radius: float = 0.02
 
     def __post_init__(self):
-        if self.kind not in ARC_POLICIES:
-            raise InvalidInputError(
-                f'arc_policy: expected one of {", ".join(ARC_POLICIES)}, got {self.kind!r}')
-        require_range('apex_clearance', self.apex_clearance, 0.0, 2.0, low_open=True, unit='m')
-        require_range('min_radius', self.min_radius, 0.0, 2.0, low_open=True, unit='m')
+        validate_fields(self)
 
 
 def paper_phi(half_width, h):

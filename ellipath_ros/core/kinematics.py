@@ -38,6 +38,7 @@ import math
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
+from ellipath_ros.core.settings import validate_fields
 import numpy as np
 
 # |s_i . b_i| / (L1 L2) (IK) and |det A| / L2^3 (FK) below this count as singular: the rates
@@ -96,17 +97,10 @@ class DeltaGeometry:
 
     def __post_init__(self):
         """Check every dimension and store them as floats."""
-        for field in ('base_radius', 'effector_radius', 'upper_arm', 'forearm'):
-            value = require_range(field, getattr(self, field), 0.0,
-                                  low_open=True, unit='m')
-            object.__setattr__(self, field, value)
+        validate_fields(self)
         offset = abs(self.base_radius - self.effector_radius)
         # A forearm no longer than the radial offset cannot hang the effector below the base.
         require_range('forearm', self.forearm, offset, low_open=True, unit='m')
-        for field in ('joint_min', 'joint_max'):
-            value = require_range(field, getattr(self, field), -math.pi,
-                                  math.pi, unit='rad')
-            object.__setattr__(self, field, value)
         if not self.joint_min < self.joint_max:
             raise InvalidInputError(
                 f'joint_max: expected a value > joint_min = {self.joint_min:g} '
@@ -132,10 +126,7 @@ class JointLimits:
 
     def __post_init__(self):
         """Check that both limits are finite and positive, and store them as floats."""
-        object.__setattr__(self, 'max_velocity', require_range(
-            'max_joint_velocity', self.max_velocity, 0.01, 1000.0, unit='rad/s'))
-        object.__setattr__(self, 'max_acceleration', require_range(
-            'max_joint_accel', self.max_acceleration, 0.1, 1e5, unit='rad/s^2'))
+        validate_fields(self)
 
 
 def _unreachable(message, index):
@@ -602,50 +593,6 @@ def _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities, accele
                  + np.einsum('nij,nij->ni', forearm_rate, forearm_rate)
                  - np.einsum('nij,nij->ni', forearm, dd_elbow) * qdot * qdot)
     return numerator / diagonal
-
-
-def cartesian_velocities(q, qdot, geometry, *, name='q'):
-    """
-    TCP velocities for the given joint rates (forward kinematics, then ``A^-1 B q_dot``).
-
-    Parameters
-    ----------
-    q : array_like, shape (N, 3) or (3,)
-        Joint angles [rad].
-    qdot : array_like, same shape
-        Joint velocities [rad/s].
-    geometry : DeltaGeometry
-        Robot dimensions.
-    name : str
-        Name of ``q`` in error messages.
-
-    Returns
-    -------
-    numpy.ndarray, same shape
-        TCP velocities [m/s].
-
-    Raises
-    ------
-    UnreachableError
-        The pose cannot be assembled, or is at a direct-kinematics singularity
-        (``|det A| / L2^3`` below 1e-6: the forearms are coplanar).
-
-    """
-    q_array, single = _as_rows(name, q)
-    qdot_array, _ = _as_rows('qdot', qdot)
-    _same_shape('qdot', qdot_array, q_array, name)
-    points = _forward(q_array, geometry, name)
-    forearm, d_elbow, _ = _arm_vectors(points, q_array, geometry)
-    determinant = np.linalg.det(forearm)
-    singular = np.abs(determinant) < _SINGULARITY_TOLERANCE * geometry.forearm ** 3
-    if singular.any():
-        index = int(np.argmax(singular))
-        raise _unreachable(
-            f'{name}[{index}]: expected joint angles away from singularities, got '
-            f'{_fmt(q_array[index])} rad where the forearms are coplanar', index)
-    rhs = np.einsum('nij,nij->ni', forearm, d_elbow) * qdot_array
-    velocities = np.linalg.solve(forearm, rhs[:, :, np.newaxis])[:, :, 0]
-    return velocities[0] if single else velocities
 
 
 def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError, require_range
+from .errors import InvalidInputError
+from .settings import validate_fields
 
 # The construction aims at these fractions of the limits; the rest absorbs what happens
 # between the steps it is built from (the final check samples the continuous motion).
@@ -67,14 +68,9 @@ class CartesianLimits:
     max_accel_jump: float = 25.0
 
     def __post_init__(self):
-        # Practical ranges: beyond them a motion lasts hours or the arithmetic overflows.
-        for name, low, high, unit in (('max_speed', 0.01, 100.0, 'm/s'),
-                                      ('max_accel', 0.1, 1e4, 'm/s^2'),
-                                      ('max_jerk', 1.0, 1e7, 'm/s^3')):
-            object.__setattr__(self, name, require_range(
-                name, getattr(self, name), low, high, unit=unit))
-        object.__setattr__(self, 'max_accel_jump', require_range(
-            'max_accel_jump', self.max_accel_jump, 0.0, 1e4, unit='m/s^2'))
+        # Practical ranges (core/settings.py): beyond them a motion lasts hours or the
+        # arithmetic overflows.
+        validate_fields(self)
 
 
 def _cap_values(speed_cap, s):

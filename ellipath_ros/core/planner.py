@@ -23,7 +23,7 @@ same flat parameter names (``PlannerConfig.from_flat``).
 """
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, MISSING
 import functools
 import math
 import time
@@ -31,21 +31,20 @@ import time
 import numpy as np
 
 from .errors import InvalidInputError, LimitError, require_point, require_range
-from .geometry import (
-    ArcPolicy, DEFAULT_JOIN_TOLERANCE, JOINS, plan_path, require_coordinates)
+from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
-    check_joint_limits, DEFAULT_JOINT_NAMES, EXECUTED_KEYS, executed_table, JointTrajectoryData,
+    check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData,
     knots_at, minimal_knots, quintic_interpolate, quintic_positions, sample_joint_trajectory,
     validate_jtc)
 from .kinematics import (
     DeltaGeometry, forward_kinematics, inverse_kinematics, joint_motion, joint_velocities,
     JointLimits)
 from .limits import CartesianLimits
-from .motion import PROFILES
+from .motion import TimedMotion
+from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate_fields
 from .timing import time_motion
 from .workspace import SafeWorkspace
 
-OUTPUT_MODES = ('knots', 'samples')
 # Path samples for the reachability check and the joint-speed cap: at most this far apart.
 REACH_CHECK_SPACING = 0.002
 # The joint-speed cap is interpolated between path samples: keep a margin for that.
@@ -131,39 +130,24 @@ class PlannerConfig:
     joint_limits: JointLimits = field(default_factory=JointLimits)
     limits: CartesianLimits = field(default_factory=CartesianLimits)
     arc: ArcPolicy = field(default_factory=ArcPolicy)
-    pick_clearance: float = 0.025
-    place_clearance: float = 0.025
-    join: str = 'g2'
-    join_tolerance: float = DEFAULT_JOIN_TOLERANCE
-    profile: str = 'time_optimal'
-    curvature_r: float = 0.77
-    knot_tolerance: float = 1e-4
-    output_mode: str = 'knots'
-    sample_period: float = 0.004
-    joint_names: tuple = DEFAULT_JOINT_NAMES
+    pick_clearance: float = default_of('pick_clearance')
+    place_clearance: float = default_of('place_clearance')
+    join: str = default_of('join')
+    join_tolerance: float = default_of('join_tolerance')
+    profile: str = default_of('profile')
+    curvature_r: float = default_of('curvature_r')
+    knot_tolerance: float = default_of('knot_tolerance')
+    output_mode: str = default_of('output_mode')
+    sample_period: float = default_of('sample_period')
+    joint_names: tuple = default_of('joint_names')
     workspace: SafeWorkspace = field(default_factory=SafeWorkspace)
 
     def __post_init__(self):
-        require_range('pick_clearance', self.pick_clearance, 0.0, 1.0, unit='m')
-        require_range('place_clearance', self.place_clearance, 0.0, 1.0, unit='m')
-        if self.profile not in PROFILES:
-            raise InvalidInputError(
-                f'profile: expected one of {", ".join(PROFILES)}, got {self.profile!r}')
-        if self.join not in JOINS:
-            raise InvalidInputError(f'join: expected one of {", ".join(JOINS)}, got {self.join!r}')
+        validate_fields(self)
         if self.profile == 'curvature' and self.join != 'paper':
             raise InvalidInputError(
                 f"join: expected paper with profile curvature (the paper's node rule lives on "
                 f'the ellipse), got {self.join!r}')
-        require_range('join_tolerance', self.join_tolerance, 1e-6, 0.01, unit='m')
-        require_range('curvature_r', self.curvature_r, 0.0, 1000.0, low_open=True,
-                      unit='rad/m')
-        require_range('knot_tolerance', self.knot_tolerance, 1e-7, 0.01, unit='m')
-        if self.output_mode not in OUTPUT_MODES:
-            raise InvalidInputError(
-                f'output_mode: expected one of {", ".join(OUTPUT_MODES)}, '
-                f'got {self.output_mode!r}')
-        require_range('sample_period', self.sample_period, 1e-4, 0.1, unit='s')
         if isinstance(self.joint_names, (str, bytes)) or not hasattr(self.joint_names,
                                                                      '__iter__'):
             # A string would be split into characters: 'abc' is not three joint names.
@@ -179,64 +163,26 @@ class PlannerConfig:
     @classmethod
     def from_flat(cls, values):
         """
-        Build a config from flat parameter names (those of ``CORE_DEFAULTS``).
+        Build a config from flat setting names (``CORE_NAMES`` of :mod:`.settings`).
 
-        Missing names take their defaults; unknown names are an error.
+        Each name goes to the dataclass field its row feeds; missing names take their
+        defaults; unknown names are an error.
         """
-        unknown = sorted(set(values) - set(CORE_DEFAULTS))
+        unknown = sorted(set(values) - set(CORE_NAMES))
         if unknown:
             raise InvalidInputError(
-                f'parameters: expected names among {", ".join(sorted(CORE_DEFAULTS))}, '
+                f'parameters: expected names among {", ".join(sorted(CORE_NAMES))}, '
                 f'got unknown {", ".join(unknown)}')
-        merged = {**CORE_DEFAULTS, **values}
-        sections = {owner: {} for owner in _SECTIONS.values()}
-        top = {}
-        for name, value in merged.items():
-            owner = _SECTIONS.get(name)
-            target = sections[owner] if owner else top
-            target[_RENAMED.get(name, name)] = value
-        return cls(geometry=DeltaGeometry(**sections[DeltaGeometry]),
-                   joint_limits=JointLimits(**sections[JointLimits]),
-                   limits=CartesianLimits(**sections[CartesianLimits]),
-                   arc=ArcPolicy(**sections[ArcPolicy]),
-                   workspace=SafeWorkspace(**sections[SafeWorkspace]), **top)
-
-
-# Flat parameter name -> the config section that owns it (others are PlannerConfig's own).
-_SECTIONS = {
-    'base_radius': DeltaGeometry, 'effector_radius': DeltaGeometry, 'upper_arm': DeltaGeometry,
-    'forearm': DeltaGeometry, 'joint_min': DeltaGeometry, 'joint_max': DeltaGeometry,
-    'max_joint_velocity': JointLimits, 'max_joint_accel': JointLimits,
-    'max_speed': CartesianLimits, 'max_accel': CartesianLimits, 'max_jerk': CartesianLimits,
-    'max_accel_jump': CartesianLimits,
-    'arc_policy': ArcPolicy, 'apex_clearance': ArcPolicy, 'min_radius': ArcPolicy,
-    'workspace_radius': SafeWorkspace, 'workspace_z_min': SafeWorkspace,
-    'workspace_z_max': SafeWorkspace, 'keep_out_boxes': SafeWorkspace,
-}
-_RENAMED = {'max_joint_velocity': 'max_velocity', 'max_joint_accel': 'max_acceleration',
-            'arc_policy': 'kind', 'workspace_radius': 'radius', 'workspace_z_min': 'z_min',
-            'workspace_z_max': 'z_max'}
-
-
-def _core_defaults():
-    """Return the flat defaults, read from the dataclasses (the one source in code)."""
-    defaults = {}
-    default_config = PlannerConfig()
-    sections = {DeltaGeometry: default_config.geometry, JointLimits: default_config.joint_limits,
-                CartesianLimits: default_config.limits, ArcPolicy: default_config.arc,
-                SafeWorkspace: default_config.workspace}
-    for name, owner in _SECTIONS.items():
-        defaults[name] = getattr(sections[owner], _RENAMED.get(name, name))
-    for item in fields(PlannerConfig):
-        if item.name not in ('geometry', 'joint_limits', 'limits', 'arc', 'workspace'):
-            defaults[item.name] = getattr(default_config, item.name)
-    defaults['joint_names'] = list(defaults['joint_names'])
-    # Flat, as the node's parameter holds it: 6 numbers per box.
-    defaults['keep_out_boxes'] = [value for box in defaults['keep_out_boxes'] for value in box]
-    return defaults
-
-
-CORE_DEFAULTS = _core_defaults()
+        by_owner = {}
+        for name, value in values.items():
+            setting = SETTING_BY_NAME[name]
+            by_owner.setdefault(setting.owner, {})[setting.attribute] = value
+        # The sections (geometry, limits, ...) are the fields built by a default factory,
+        # their class named by the rows' owner.
+        parts = {item.name: item.default_factory(**by_owner.get(item.default_factory.__name__,
+                                                                {}))
+                 for item in fields(cls) if item.default_factory is not MISSING}
+        return cls(**parts, **by_owner.get(cls.__name__, {}))
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,8 +212,8 @@ class LegPlan:
 
     """
 
-    path: object
-    motion: object
+    path: PickPlacePath
+    motion: TimedMotion
     joint_trajectory: JointTrajectoryData
     knot_positions: np.ndarray
     max_interpolation_error: float

@@ -47,14 +47,15 @@ import time
 
 import numpy as np
 
-from .errors import EllipathError, InvalidInputError, require_range
+from .errors import EllipathError, InvalidInputError
 from .joint_trajectory import JointTrajectoryData, quintic_interpolate, REST_TOLERANCE
 from .kinematics import forward_kinematics
+from .settings import SETTING_BY_NAME, validate
 
-PAIRING_MODES = ('stamp', 'sequence')
+PAIRING_MODES = SETTING_BY_NAME['pairing'].choices
 # zero: the controller starts the trajectory at the cycle that picks it up;
 # ahead: stamp = publication + release_lead, so the start is known exactly.
-HEADER_STAMPS = ('zero', 'ahead')
+HEADER_STAMPS = SETTING_BY_NAME['header_stamp'].choices
 # What the node did with pairs; see Sequencer.counts.
 COUNTERS = ('received', 'planned', 'released', 'rejected', 'dropped')
 # Samples of the running trajectory over the window of its uncertain start when a joint state
@@ -181,7 +182,7 @@ class PlannedMotion:
     start_position: np.ndarray
     end_position: np.ndarray
     plan_time: float
-    ready: object = None
+    ready: float | None = None
     details: dict = field(default_factory=dict)
 
     @property
@@ -243,9 +244,9 @@ class Release:
     published: float
     earliest_start: float
     latest_start: float
-    stamp: object = None
-    previous_end: object = None
-    previous_earliest_end: object = None
+    stamp: float | None = None
+    previous_end: float | None = None
+    previous_earliest_end: float | None = None
     waited_for_planner: bool = False
 
     @property
@@ -320,7 +321,8 @@ class Sequencer:
     Parameters
     ----------
     depth : int
-        Most pairs in the queue (waiting, being planned and held together), >= 1.
+        Most pairs in the queue (waiting, being planned and held together); the range of
+        ``queue_depth`` in :mod:`.settings`.
     clock : callable, optional
         Returns the current time [s]; :func:`time.monotonic` by default. Blocking waits use
         real time whatever the clock, so tests with a fake clock use the non-blocking calls.
@@ -328,7 +330,7 @@ class Sequencer:
     """
 
     def __init__(self, depth, clock=time.monotonic):
-        self.depth = int(require_range('queue_depth', depth, 1, 10**6))
+        self.depth = validate('queue_depth', depth)
         self.clock = clock
         self._condition = threading.Condition()
         self._waiting = deque()
@@ -715,7 +717,7 @@ class StartCheck:
     """
 
     action: str
-    position: object
+    position: np.ndarray | None
     distance: float
     basis: str
 

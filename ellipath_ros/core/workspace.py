@@ -31,17 +31,14 @@ import numbers
 
 import numpy as np
 
-from .errors import InvalidInputError, require_range, WorkspaceError
+from .errors import InvalidInputError, WorkspaceError
+from .settings import default_of, SETTING_BY_NAME, validate_fields
 
 # Default tolerance of the comparisons [m]: forward kinematics of inverse kinematics returns
 # a point within ~1e-15 m, so a place on the boundary must not count as outside. Nothing
 # physical; the planner allows the executed motion more (see planner.py).
-WORKSPACE_TOLERANCE = 1e-9
-# Largest radius and height magnitude a workspace may be given [m]; no Delta robot is larger.
-WORKSPACE_SIZE_LIMIT = 10.0
-# Smallest workspace radius [m]: below a millimetre nothing can be planned.
-MIN_WORKSPACE_RADIUS = 0.001
-BOX_FIELDS = ('xmin', 'ymin', 'zmin', 'xmax', 'ymax', 'zmax')
+_TOLERANCE = 1e-9
+_BOX_FIELDS = ('xmin', 'ymin', 'zmin', 'xmax', 'ymax', 'zmax')
 
 
 def _fmt(values):
@@ -83,7 +80,7 @@ def boxes_from_flat(values, name='keep_out_boxes'):
             flat.extend(item)
         else:
             flat.append(item)
-    if len(flat) % len(BOX_FIELDS):
+    if len(flat) % len(_BOX_FIELDS):
         raise InvalidInputError(
             f'{name}: expected a multiple of 6 values ([xmin, ymin, zmin, xmax, ymax, zmax] '
             f'per box), got {len(flat)} values')
@@ -91,15 +88,16 @@ def boxes_from_flat(values, name='keep_out_boxes'):
     for index, value in enumerate(flat):
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             raise InvalidInputError(f'{name}[{index}]: expected a number, got {value!r}')
-        coordinates.append(require_range(f'{name}[{index}]', value, -WORKSPACE_SIZE_LIMIT,
-                                         WORKSPACE_SIZE_LIMIT, unit='m'))
+        coordinates.append(SETTING_BY_NAME['keep_out_boxes'].check_number(
+            value, f'{name}[{index}]'))
     boxes = tuple(tuple(coordinates[start:start + 6])
                   for start in range(0, len(coordinates), 6))
     for index, box in enumerate(boxes):
         for axis in range(3):
             if not box[axis] < box[axis + 3]:
+                low, high = _BOX_FIELDS[axis], _BOX_FIELDS[axis + 3]
                 raise InvalidInputError(
-                    f'{name}[{index}]: expected {BOX_FIELDS[axis]} < {BOX_FIELDS[axis + 3]}, '
+                    f'{name}[{index}]: expected {low} < {high}, '
                     f'got {box[axis]:g} and {box[axis + 3]:g} m')
     return boxes
 
@@ -112,29 +110,24 @@ class SafeWorkspace:
     Parameters
     ----------
     radius : float
-        Largest distance of the TCP from the base axis (the z axis) [m], in [0.001, 10].
+        Largest distance of the TCP from the base axis (the z axis) [m]
+        (``workspace_radius`` in :mod:`.settings`, as the ranges of all fields).
     z_min, z_max : float
-        Lowest and highest TCP height [m], in [-10, 10], ``z_min < z_max``.
+        Lowest and highest TCP height [m], ``z_min < z_max``.
     keep_out_boxes : sequence
         Axis-aligned boxes the TCP must not enter, ``[xmin, ymin, zmin, xmax, ymax, zmax]``
         each [m], flat (6 numbers per box) or grouped; stored as a tuple of 6-tuples.
 
     """
 
-    radius: float = 0.4
-    z_min: float = -1.0
-    z_max: float = -0.55
-    keep_out_boxes: tuple = ()
+    radius: float = default_of('workspace_radius')
+    z_min: float = default_of('workspace_z_min')
+    z_max: float = default_of('workspace_z_max')
+    keep_out_boxes: tuple = default_of('keep_out_boxes')
 
     def __post_init__(self):
         """Check the bounds and store them as floats, the boxes as a tuple of 6-tuples."""
-        object.__setattr__(self, 'radius', require_range(
-            'workspace_radius', self.radius, MIN_WORKSPACE_RADIUS, WORKSPACE_SIZE_LIMIT,
-            unit='m'))
-        for field, name in (('z_min', 'workspace_z_min'), ('z_max', 'workspace_z_max')):
-            object.__setattr__(self, field, require_range(
-                name, getattr(self, field), -WORKSPACE_SIZE_LIMIT, WORKSPACE_SIZE_LIMIT,
-                unit='m'))
+        validate_fields(self)
         if not self.z_min < self.z_max:
             raise InvalidInputError(
                 f'workspace_z_max: expected a value > workspace_z_min = {self.z_min:g} m, '
@@ -159,7 +152,7 @@ class SafeWorkspace:
         inside = (points[:, None, :] > low[None]) & (points[:, None, :] < high[None])
         return inside.all(axis=2)
 
-    def contains(self, points, tolerance=WORKSPACE_TOLERANCE):
+    def contains(self, points, tolerance=_TOLERANCE):
         """
         Tell, point by point, whether the TCP may be there.
 
@@ -187,7 +180,7 @@ class SafeWorkspace:
                   & ~self._inside_boxes(array, tolerance).any(axis=1))
         return ok[0] if single else ok
 
-    def check(self, points, name='points', times=None, tolerance=WORKSPACE_TOLERANCE):
+    def check(self, points, name='points', times=None, tolerance=_TOLERANCE):
         """
         Raise :class:`WorkspaceError` naming the first point outside the safe workspace.
 
