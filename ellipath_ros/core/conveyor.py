@@ -128,6 +128,13 @@ class Conveyor:
             raise InvalidInputError(
                 f'tracking_window_downstream: expected more than tracking_window_upstream '
                 f'{upstream:g} m, got {downstream:g} m')
+        speeds = np.linalg.norm(self.velocity) * np.linalg.norm(self.place_velocity)
+        if np.linalg.norm(np.cross(self.velocity, self.place_velocity)) > 1e-9 * speeds:
+            # The frame's change must lie along one line for the transfer to meet a moving
+            # place exactly (see _transfer).
+            raise InvalidInputError(
+                f'place_conveyor_velocity: expected zero or parallel to conveyor_velocity '
+                f'{self.velocity.tolist()}, got {self.place_velocity.tolist()}')
         object.__setattr__(self, 'window_upstream', upstream)
         object.__setattr__(self, 'window_downstream', downstream)
 
@@ -229,7 +236,9 @@ class FrameRamp:
         x = x + self.change * np.maximum(t - self.bounds[-1], 0.0)
         e = self.direction
         displacement = np.outer(t, self.v0) + np.outer(x, e)
-        velocity = self.v0 + np.outer(u, e)
+        # Exactly v1 after the change (a trajectory must end at rest to the last bit).
+        velocity = np.where((t >= self.bounds[-1])[:, np.newaxis], self.v1,
+                            self.v0 + np.outer(u, e))
         acceleration = np.outer(np.where(inside, a, 0.0), e)
         jerk_vector = np.outer(np.where(inside, jerk, 0.0), e)
         return displacement, velocity, acceleration, jerk_vector
