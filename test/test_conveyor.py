@@ -15,8 +15,10 @@
 """Conveyor tracking: picks from a moving belt, checked on what JTC executes."""
 
 import functools
+import json
 import math
 
+from ellipath_ros.cli import main
 from ellipath_ros.core.conveyor import (
     Conveyor, FRAME_LIMIT_SHARE, FrameRamp, plan_belt_cycle, ramp_time)
 from ellipath_ros.core.errors import InvalidInputError, MissedError
@@ -226,3 +228,18 @@ def test_frame_ramp_integrates_its_velocity_and_keeps_its_share():
 def test_invalid_conveyors_are_rejected(values, message):
     with pytest.raises(InvalidInputError, match=message):
         Conveyor(**values)
+
+
+def test_cli_plans_a_belt_cycle_and_reports_a_miss(capsys):
+    common = ['plan', '--pick', '-0.2', '0', '-0.85', '--place', '0.15', '0.2', '-0.8',
+              '--conveyor-velocity', '0.3', '0', '0', '--start', '0.15', '0.2', '-0.8',
+              '--json']
+    assert main(common + ['--pick-time', '0.1']) == 0
+    result = json.loads(capsys.readouterr().out)
+    # The object was at --pick at 0.1 s: it is picked where it is at the pick time.
+    expected = [-0.2 + 0.3 * (result['belt.pick_time'] - 0.1), 0.0, -0.85]
+    assert np.allclose(result['pick_position'], expected, atol=1e-9)
+    assert result['joint_trajectory']['time_from_start'][-1] == result['duration']
+    assert main(common + ['--tracking-window', '-0.3', '-0.19']) == 2
+    error = json.loads(capsys.readouterr().out)['error']
+    assert error['kind'] == 'missed'
