@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
+from ellipath_ros.core.conveyor import Conveyor
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.errors import require_range
@@ -185,6 +186,29 @@ PARAMETER_TABLE = (
           'release; also the longest wait at release for a joint state measured after the '
           'previous motion when the last one showed the robot off it; 0 never uses them',
           low=0.0, high=60.0),
+    # Conveyor tracking (issue 12).
+    _node('conveyor_velocity', _DOUBLE_ARRAY, [0.0, 0.0, 0.0], 'm/s',
+          'Pick belt velocity (vx, vy, vz) in the base frame; zero = static picks. A fresh '
+          'conveyor_twist overrides it. A pick header.stamp is the time the object was at '
+          'that position (zero = on receipt)'),
+    _node('place_conveyor_velocity', _DOUBLE_ARRAY, [0.0, 0.0, 0.0], 'm/s',
+          'Place belt (tray) velocity in the base frame, zero or parallel to the pick belt; '
+          'zero = static places'),
+    _node('tracking_window_upstream', _DOUBLE, Conveyor().window_upstream, 'm',
+          'Tracking window: upstream limit along the pick belt direction (TCP position '
+          'projected on the unit belt velocity); an object upstream of it is picked as it '
+          'enters', low=-10.0, high=10.0),
+    _node('tracking_window_downstream', _DOUBLE, Conveyor().window_downstream, 'm',
+          'Tracking window: downstream limit; an object that would pass it before the robot '
+          'can be on it is rejected as missed', low=-10.0, high=10.0),
+    _node('conveyor_twist_timeout', _DOUBLE, 0.5, 's',
+          'A conveyor_twist (geometry_msgs/TwistStamped, linear part, base frame) overrides '
+          'conveyor_velocity for this long after its arrival; 0 never uses it', low=0.0,
+          high=60.0),
+    _node('conveyor_replan_tolerance', _DOUBLE, 0.001, 'm/s',
+          'At release, a belt pick planned for a belt velocity further than this from the '
+          'current one is re-planned (as is one whose planned start has passed)', low=0.0,
+          high=1.0),
     # Robot geometry and joint position limits.
     _core('base_radius', _DOUBLE, 'm', 'Base centre to actuator axis (R)', low=0.0, high=5.0),
     _core('effector_radius', _DOUBLE, 'm', 'Effector centre (TCP) to forearm joint (r)',
@@ -290,6 +314,12 @@ class NodeSettings:
         TCP start used when nothing better is known [m].
     joint_state_timeout : float
         Age above which a joint state is not used as the start [s].
+    conveyor : Conveyor
+        Belt velocities (from the parameters) and the tracking window.
+    conveyor_twist_timeout : float
+        How long a conveyor_twist overrides conveyor_velocity [s].
+    conveyor_replan_tolerance : float
+        Belt velocity change that makes a held belt pick be re-planned at release [m/s].
 
     """
 
@@ -305,6 +335,9 @@ class NodeSettings:
     place_dwell: float
     home_position: tuple
     joint_state_timeout: float
+    conveyor: Conveyor
+    conveyor_twist_timeout: float
+    conveyor_replan_tolerance: float
 
 
 def _check_node_value(spec, value):
@@ -365,5 +398,10 @@ def build_settings(values):
     if not node_values['frame_id']:
         raise InvalidInputError("frame_id: expected a frame name, got ''")
     home_position = require_point('home_position', node_values.pop('home_position'))
+    conveyor = Conveyor(velocity=node_values.pop('conveyor_velocity'),
+                        place_velocity=node_values.pop('place_conveyor_velocity'),
+                        window_upstream=node_values.pop('tracking_window_upstream'),
+                        window_downstream=node_values.pop('tracking_window_downstream'))
     return NodeSettings(planner=PlannerConfig.from_flat(core_values),
-                        home_position=tuple(home_position.tolist()), **node_values)
+                        home_position=tuple(home_position.tolist()), conveyor=conveyor,
+                        **node_values)

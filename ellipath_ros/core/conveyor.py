@@ -37,15 +37,19 @@ moves, the place dwell on it and an exit (a vertical lift off the tray, then the
 frame brought to rest) so that the trajectory ends at rest as JTC requires.
 
 Intercept. The pick time is unknown: the object moves while the robot
-approaches it. The relative target R of the approach is the fixed point of
-R -> p(t_pick(R)) - d(R), where p is the object's predicted position, t_pick
-the time the approach planned to R arrives (or the window entry, if later) and
-d the frame's displacement over the approach. The map contracts by about the
-belt speed over the approach speed; it is solved by Anderson(1)-accelerated
-fixed-point iteration (the secant method where the correction is along one
-direction, which it is for a single belt) to ``INTERCEPT_TOLERANCE``, in at
-most ``INTERCEPT_ITERATIONS`` steps. An object that leaves the tracking
-window before the robot can be on it is rejected as ``missed``.
+approaches it, and a leg's duration jumps where the paper's rule rounds the
+ellipse's angle, so no fixed-point iteration on the target can be exact. Two
+free quantities make it exact instead: the midpoint of the frame's velocity
+change (anywhere in the arc with room for the S-curve) and a wait at the start.
+For a relative target lam along the belt, they are chosen so that the TCP meets
+the object exactly (see :func:`_intercept`); lam is feasible when they fit,
+and the smallest feasible lam (the earliest pick, to ``INTERCEPT_RESOLUTION``)
+is found by bracketing and Illinois false position, in at most
+``INTERCEPT_ITERATIONS`` steps each, with a clear error otherwise. The
+transfer to a place (still, or on a parallel tray belt) is met the same way,
+through the midpoint of its frame change. An object that leaves the tracking
+window before the robot can be on it is rejected as ``missed``, naming by how
+much time and distance.
 """
 
 from dataclasses import dataclass, field
@@ -66,10 +70,15 @@ from .timing import CartesianLimits, time_motion
 # Share of max_accel and max_jerk the frame's velocity change may use; the relative motion
 # is planned with the rest, so that their sum stays within the limits.
 FRAME_LIMIT_SHARE = 0.2
-# The intercept's fixed point is solved to this TCP-to-object distance [m] (1/1000 of the
-# 0.1 mm the pick needs), in at most this many iterations.
+# The transfer's end is solved to this distance from the place [m] (1/1000 of the 0.1 mm a
+# belt pick needs), in at most this many iterations (also the intercept's bound).
 INTERCEPT_TOLERANCE = 1e-7
 INTERCEPT_ITERATIONS = 40
+# The earliest pick is found to this resolution along the belt [m] (0.3 ms at 0.3 m/s; the
+# TCP meets the object exactly whatever it is), first stepping this long [s] times the belt
+# speed, doubled, until a pick is feasible.
+INTERCEPT_RESOLUTION = 1e-4
+INTERCEPT_STEP = 0.01
 # Where the arc is shorter than this many times the frame's shortest change, the relative
 # motion is slowed down to that: the change then has room to move, which the solvers use.
 RAMP_ROOM = 1.5
@@ -522,10 +531,11 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
 
     low = along_at_start
     low_value, leg, _ = solve(low)
-    step = speed * max(leg.duration, 0.05)
-    high = low
+    # First guess: where the bounds would be met if the leg did not change with lam.
+    high = max(low + speed * leg.lowest,
+               upstream - speed * (leg.duration - leg.lowest)) + INTERCEPT_RESOLUTION
+    step = speed * INTERCEPT_STEP
     for _ in range(INTERCEPT_ITERATIONS):
-        high += step
         high_value, leg, midpoint = solve(high)
         if high_value >= 0.0:
             break
@@ -533,13 +543,14 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
             # Even the best case is past the window: late by the time the robot needs more.
             _raise_missed(high + speed * (leg.duration - leg.lowest), conveyor, speed)
         low, low_value = high, high_value
+        high += step
         step *= 2.0
     else:
         raise LimitError(f'intercept: expected a feasible pick within '
                          f'{INTERCEPT_ITERATIONS} steps along the belt, got none')
     low_weight = high_weight = 1.0
     for _ in range(INTERCEPT_ITERATIONS):
-        if high - low <= INTERCEPT_TOLERANCE:
+        if high - low <= INTERCEPT_RESOLUTION:
             break
         # Illinois false position: the secant between the bracket's ends, with the weight of
         # an end that stays halved so that it converges even where the leg's duration jumps.
@@ -555,7 +566,7 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
             high_weight, low_weight = 0.5 * high_weight, 1.0
     else:
         raise LimitError(f'intercept: expected the earliest pick to within '
-                         f'{INTERCEPT_TOLERANCE:g} m in {INTERCEPT_ITERATIONS} iterations, '
+                         f'{INTERCEPT_RESOLUTION:g} m in {INTERCEPT_ITERATIONS} iterations, '
                          f'got a bracket of {high - low:.3g} m')
     _, leg, midpoint = solve(high)
     frame = leg.frame(np.zeros(3), velocity, midpoint, config)

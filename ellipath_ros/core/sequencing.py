@@ -144,6 +144,8 @@ class PairRequest:
         Clock time of the intake [s].
     topic : str
         Where the pair came from (``place_pose`` or ``pick_place``), for statuses.
+    latch_time : float or None
+        When the object was at ``pick`` (its header.stamp, node clock) [s]; belt picks.
 
     """
 
@@ -152,6 +154,7 @@ class PairRequest:
     place: np.ndarray
     received: float
     topic: str
+    latch_time: object = None
 
 
 @dataclass(frozen=True)
@@ -401,9 +404,11 @@ class Sequencer:
 
     # --- intake -----------------------------------------------------------------------------
 
-    def submit(self, pick, place, topic):
+    def submit(self, pick, place, topic, latch_time=None):
         """
         Take a pair into the queue and return its :class:`PairRequest`.
+
+        ``latch_time``: when the object was at ``pick`` (belt picks), see PairRequest.
 
         Raises
         ------
@@ -421,7 +426,8 @@ class Sequencer:
                     f'{self._length()} pairs queued (queue_depth {self.depth}): the newest '
                     'pair is rejected')
             request = PairRequest(self._numbers, np.array(pick, dtype=float),
-                                  np.array(place, dtype=float), self.clock(), topic)
+                                  np.array(place, dtype=float), self.clock(), topic,
+                                  latch_time)
             self._waiting.append(request)
             self._condition.notify_all()
             return request
@@ -592,9 +598,12 @@ class Sequencer:
                                   None if last is None else last.latest_end)[2]
 
     def released(self, motion, published, header_stamp='zero', controller_period=0.002,
-                 release_lead=0.004):
+                 release_lead=0.004, start=None):
         """
         Record that ``motion`` (taken for release) was published at ``published``.
+
+        ``start``: the clock time of a stamp the caller chose (a belt pick starts exactly at
+        the time its intercept was planned for); by default the stamp follows ``header_stamp``.
 
         Returns
         -------
@@ -605,8 +614,9 @@ class Sequencer:
         with self._condition:
             previous = self._last_release
             previous_end = None if previous is None else previous.latest_end
-            earliest, latest, stamp = release_timing(published, header_stamp, controller_period,
-                                                     release_lead, previous_end)
+            earliest, latest, stamp = (
+                (start, start, start) if start is not None else release_timing(
+                    published, header_stamp, controller_period, release_lead, previous_end))
             release = Release(
                 motion, published, earliest, latest, stamp, previous_end,
                 None if previous is None else previous.earliest_end,
