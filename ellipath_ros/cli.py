@@ -140,7 +140,7 @@ def _belt_result(args, config):
 def _format_belt(result):
     """Return a short human-readable summary of a belt cycle (planned and executed peaks)."""
     lines = [f"belt cycle: {result['duration'] * 1e3:.5g} ms, {result['n_points']} points; "
-             f"pick at {result['belt.pick_time']:.6g} s (after a wait of "
+             f"pick at {result['belt.pick_after_start']:.6g} s (after a wait of "
              f"{result['belt.wait'] * 1e3:.4g} ms), at {result['belt.window_position']:.4g} m "
              f"along the belt, {result['belt.margin_distance']:.4g} m "
              f"({result['belt.margin_time']:.4g} s) before the window's end"]
@@ -230,7 +230,7 @@ def _run_plan(args):
     if args.json:
         sys.stdout.write(json.dumps(_finite(result), allow_nan=False) + '\n')
     else:
-        sys.stdout.write(_format_belt(result) if 'belt.pick_time' in result
+        sys.stdout.write(_format_belt(result) if 'belt.pick_after_start' in result
                          else _format_human(result))
     return 0
 

@@ -237,7 +237,8 @@ def test_cli_plans_a_belt_cycle_and_reports_a_miss(capsys):
     assert main(common + ['--pick-time', '0.1']) == 0
     result = json.loads(capsys.readouterr().out)
     # The object was at --pick at 0.1 s: it is picked where it is at the pick time.
-    expected = [-0.2 + 0.3 * (result['belt.pick_time'] - 0.1), 0.0, -0.85]
+    expected = [-0.2 + 0.3 * result['belt.pick_after_latch'], 0.0, -0.85]
+    assert result['belt.pick_after_start'] == pytest.approx(result['belt.pick_after_latch'] + 0.1)
     assert np.allclose(result['pick_position'], expected, atol=1e-9)
     assert result['joint_trajectory']['time_from_start'][-1] == result['duration']
     assert main(common + ['--tracking-window', '-0.3', '-0.19']) == 2

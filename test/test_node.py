@@ -899,3 +899,44 @@ def test_pick_place_pairs_never_mix_with_the_pose_topics(make_harness):
     assert harness.node.pending_pick_count == 1
     status, trajectory = harness.send_place(PICK, stamp=Time(sec=5))
     assert status.level == DiagnosticStatus.OK and distance_to(trajectory, OTHER_PICK) < PASSES
+
+
+# --- conveyor tracking (issue 12) -------------------------------------------------------------
+
+def node_now(harness):
+    """Return the node clock now [s] and as a builtin_interfaces/Time."""
+    now = harness.node.get_clock().now()
+    return now.nanoseconds * 1e-9, now.to_msg()
+
+
+def test_node_picks_from_a_moving_belt_at_the_planned_instant(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0], 'pick_dwell': 0.05})
+    latch, stamp = node_now(harness)
+    pick = np.array([-1.5, 0.05, -0.85])
+    status, trajectory = harness.send_pair(pick, (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.OK, status.message
+    values = values_of(status)
+    # The trajectory was received before its stamp: the controller holds the robot until then,
+    # so it starts exactly when its intercept was planned for (node clock = system time).
+    start = stamp_seconds(trajectory)
+    received = harness.received[-1][0] + time.time() - time.monotonic()
+    assert received < start
+    planned = [values_of(item) for item in harness.statuses if item.message == 'planned']
+    after_latch = float(planned[-1]['belt.pick_after_latch'])
+    assert float(planned[-1]['belt.margin_distance']) >= 0.0
+    assert 'belt.window_position' in values
+    data = joint_trajectory_data(trajectory)
+    q, _, _ = quintic_interpolate(data, np.array([latch + after_latch - start]))
+    tcp = forward_kinematics(q, GEOMETRY)[0]
+    expected = pick + np.array([0.3, 0.0, 0.0]) * after_latch
+    assert np.linalg.norm(tcp - expected) <= 1e-4
+
+
+def test_node_reports_a_missed_object_and_publishes_nothing(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0],
+                            'tracking_window_downstream': 0.2})
+    _, stamp = node_now(harness)
+    status, trajectory = harness.send_pair([0.19, 0.0, -0.85], (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.ERROR
+    assert values_of(status)['kind'] == 'missed'
+    assert trajectory is None

@@ -801,8 +801,9 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
         'duration': float(trajectory.time_from_start[-1]),
         'n_points': int(trajectory.time_from_start.size),
         'executed.max_interpolation_error': max(leg.max_interpolation_error for leg in legs),
-        'belt.pick_time': intercept.pick_time,
-        'belt.pick_time_from_start': intercept.wait + approach_motion.duration,
+        # Relative times: diagnostics print 9 significant digits, too few for clock times.
+        'belt.pick_after_latch': intercept.pick_time - latch_time,
+        'belt.pick_after_start': intercept.wait + approach_motion.duration,
         'belt.window_position': intercept.window_position,
         'belt.wait': intercept.wait,
         'belt.margin_time': intercept.margin_time,

@@ -388,6 +388,13 @@ class Sequencer:
             last = self._last_release
         return last if last is not None and now < last.latest_end else None
 
+    def tail_motion(self):
+        """Return the motion the next plan follows (last held, else releasing), or None."""
+        with self._condition:
+            if self._held:
+                return self._held[-1]
+            return self._releasing
+
     def predicted_end(self, now=None):
         """
         Return the latest clock time at which every held motion has ended [s].
