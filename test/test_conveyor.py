@@ -18,6 +18,9 @@ import functools
 import json
 import math
 
+from ellipath_ros.belt_demo import failures
+from ellipath_ros.belt_demo import format_belt_report
+from ellipath_ros.belt_demo import run_belt_scenario
 from ellipath_ros.cli import main
 from ellipath_ros.core.conveyor import (
     Conveyor, FRAME_LIMIT_SHARE, FrameRamp, plan_belt_cycle, ramp_time)
@@ -244,3 +247,14 @@ def test_cli_plans_a_belt_cycle_and_reports_a_miss(capsys):
     assert main(common + ['--tracking-window', '-0.3', '-0.19']) == 2
     error = json.loads(capsys.readouterr().out)['error']
     assert error['kind'] == 'missed'
+
+
+def test_belt_scenario_picks_on_the_object_and_reports_misses():
+    # A stream faster than the robot: some objects are necessarily missed.
+    result = run_belt_scenario(count=8, speed=0.3, rate=4.0, seed=3)
+    assert failures(result) == []
+    assert result['picked'] >= 1 and result['missed'] >= 1
+    assert result['picked'] + result['missed'] == 8
+    assert all(miss['kind'] == 'missed' for miss in result['misses'])
+    assert result['executed.max_tcp_to_object_at_pick'] <= ON_OBJECT
+    assert 'picks/min' in format_belt_report(result)
