@@ -97,7 +97,8 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
     position, free_at = np.array(HOME), 0.0
     emulator = JazzyJtcEmulator(config.joint_names, start_time=0.0,
                                 initial_positions=inverse_kinematics(position, config.geometry))
-    picks, misses, worst = [], [], {'on_object': 0.0, 'relative_speed': 0.0}
+    picks, misses, sent = [], [], []
+    worst = {'on_object': 0.0, 'relative_speed': 0.0}
     peaks = dict.fromkeys(('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
                            'joint_peak_accel'), 0.0)
     for number, (latch, pick) in enumerate(zip(latches, objects)):
@@ -113,6 +114,7 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
         # Delivered before its stamp, inside the previous place dwell (or while idle): the
         # controller holds the robot at rest until the stamp, so it starts exactly then.
         emulator.receive(trajectory, start, max(start - HANDOVER, emulator.time))
+        sent.append((start, trajectory))
         offset = plan.intercept.pick_time - start
         dwell = offset + np.linspace(0.0, DWELL, DWELL_SAMPLES)
         tcp = forward_kinematics(quintic_interpolate(trajectory, dwell)[0], config.geometry)
@@ -134,7 +136,17 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
                       'duration': trajectory.duration})
         position, free_at = plan.end_position, start + trajectory.duration
     emulator.run_until(free_at + 0.01)
-    timeline = executed_tcp(emulator.samples(), config.geometry)
+    samples = emulator.samples()
+    timeline = executed_tcp(samples, config.geometry)
+    # Each row the emulated controller commanded, against the trajectory that commanded it
+    # at that time: the timeline runs the plans exactly, none cut short or started late.
+    deviation = 0.0
+    for index, (plan_start, trajectory) in enumerate(sent):
+        rows = samples.source == index
+        local = np.clip(samples.times[rows] - plan_start, 0.0, trajectory.duration)
+        planned = forward_kinematics(quintic_interpolate(trajectory, local)[0], config.geometry)
+        deviation = max(deviation, float(np.linalg.norm(
+            timeline.positions[rows] - planned, axis=1).max(initial=0.0)))
     span = (picks[-1]['start'] + picks[-1]['duration'] - picks[0]['start']) if picks else 0.0
     limits, joints = config.limits, config.joint_limits
     return {
@@ -144,6 +156,7 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
         'executed.max_tcp_to_object_at_pick': worst['on_object'],
         'executed.max_relative_speed_in_dwell': worst['relative_speed'],
         **{f'executed.{key}': value for key, value in peaks.items()},
+        'executed.emulated_deviation_from_plans': deviation,
         'executed.emulated_1khz_peak_speed': timeline.peak_speed,
         'executed.emulated_1khz_peak_accel': timeline.peak_acceleration,
         'limits': {'max_speed': limits.max_speed, 'max_accel': limits.max_accel,
@@ -170,6 +183,8 @@ def failures(result):
         (all(miss['kind'] == 'missed' for miss in result['misses']),
          'every object not picked rejected as missed'),
         (result['picked'] > 0, 'at least one pick'),
+        (result['executed.emulated_deviation_from_plans'] <= ON_OBJECT,
+         f'emulated controller within {ON_OBJECT * 1e3:g} mm of every trajectory it ran'),
     ]
     return [text for passed, text in checks if not passed]
 
@@ -185,7 +200,9 @@ def format_belt_report(result):
         'the last end, as the emulated controller ran them)',
         'executed TCP to object at the pick: max '
         f"{result['executed.max_tcp_to_object_at_pick'] * 1e3:.3g} mm; relative speed in the "
-        f"dwell: max {result['executed.max_relative_speed_in_dwell'] * 1e3:.3g} mm/s",
+        f"dwell: max {result['executed.max_relative_speed_in_dwell'] * 1e3:.3g} mm/s; emulated "
+        'controller (1 kHz) off the trajectories it ran: max '
+        f"{result['executed.emulated_deviation_from_plans'] * 1e3:.3g} mm",
         f"executed peaks: {result['executed.peak_speed']:.4g} m/s, "
         f"{result['executed.peak_accel']:.4g} m/s^2, {result['executed.peak_jerk']:.5g} m/s^3; "
         f"joints {result['executed.joint_peak_velocity']:.4g} rad/s, "

@@ -52,13 +52,14 @@ window before the robot can be on it is rejected as ``missed``, naming by how
 much time and distance.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 import numpy as np
 
 from .errors import (
-    InvalidInputError, LimitError, MissedError, require_finite, require_point, require_range)
+    DegenerateGeometryError, InvalidInputError, LimitError, MissedError, require_finite,
+    require_point, require_range)
 from .geometry import plan_path
 from .joint_trajectory import check_joint_limits, validate_jtc
 from .planner import (
@@ -79,6 +80,9 @@ INTERCEPT_ITERATIONS = 40
 # speed, doubled, until a pick is feasible.
 INTERCEPT_RESOLUTION = 1e-4
 INTERCEPT_STEP = 0.01
+# What a trial pick with no path to it (a relative target almost straight below the start)
+# counts as in the search: infeasible by this much [s].
+DEGENERATE_PENALTY = 0.05
 # Where the arc is shorter than this many times the frame's shortest change, the relative
 # motion is slowed down to that: the change then has room to move, which the solvers use.
 RAMP_ROOM = 1.5
@@ -441,8 +445,16 @@ def _moving_leg(start, target, change, config, limits, clearances):
     Where the arc is shorter than ``RAMP_ROOM`` times the shortest change, the
     relative motion is slowed down uniformly until it is that long.
     """
-    path = plan_path(start, target, clearances[0], clearances[1], config.arc, config.join,
-                     config.join_tolerance)
+    try:
+        path = plan_path(start, target, clearances[0], clearances[1], config.arc, config.join,
+                         config.join_tolerance)
+    except DegenerateGeometryError:
+        # The relative target depends on the belt's motion: one a few millimetres beside the
+        # start is incidental, not the user's choice. A tall ellipse (apex_clearance) is
+        # sound down to about 3 mm sideways; closer still, this raises too.
+        path = plan_path(start, target, clearances[0], clearances[1],
+                         replace(config.arc, kind='apex_clearance'), config.join,
+                         config.join_tolerance)
     relative = time_motion(path, limits, profile=config.profile, r=config.curvature_r)
     shortest = ramp_time(change, config.limits)
     lift, arc, _ = relative.segment_durations
@@ -521,7 +533,12 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
     upstream = conveyor.window_upstream
 
     def solve(lam):
-        leg = _moving_leg(start, across + lam * direction, speed, config, limits, clearances)
+        try:
+            leg = _moving_leg(start, across + lam * direction, speed, config, limits,
+                              clearances)
+        except DegenerateGeometryError:
+            # No path to a target straight below the start: not a pick there.
+            return -DEGENERATE_PENALTY, None, None
         midpoint = min(leg.highest, (lam - along_at_start) / speed,
                        (lam + speed * leg.duration - upstream) / speed)
         return midpoint - leg.lowest, leg, midpoint
@@ -531,15 +548,17 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
 
     low = along_at_start
     low_value, leg, _ = solve(low)
-    # First guess: where the bounds would be met if the leg did not change with lam.
-    high = max(low + speed * leg.lowest,
-               upstream - speed * (leg.duration - leg.lowest)) + INTERCEPT_RESOLUTION
     step = speed * INTERCEPT_STEP
+    # First guess: where the bounds would be met if the leg did not change with lam.
+    high = low + step if leg is None else max(
+        low + speed * leg.lowest,
+        upstream - speed * (leg.duration - leg.lowest)) + INTERCEPT_RESOLUTION
     for _ in range(INTERCEPT_ITERATIONS):
         high_value, leg, midpoint = solve(high)
         if high_value >= 0.0:
             break
-        if high - speed * midpoint + speed * leg.duration > conveyor.window_downstream:
+        if leg is not None and (high - speed * midpoint + speed * leg.duration
+                                > conveyor.window_downstream):
             # Even the best case is past the window: late by the time the robot needs more.
             _raise_missed(high + speed * (leg.duration - leg.lowest), conveyor, speed)
         low, low_value = high, high_value
