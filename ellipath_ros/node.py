@@ -26,6 +26,13 @@ Interface (topic names are relative and remappable):
 * serves ``~/clear_queue`` (std_srvs/Trigger): drops every pair waiting or held, never the
   running trajectory.
 
+Conveyor tracking (``conveyor_velocity`` or a fresh ``conveyor_twist``, geometry_msgs/
+TwistStamped; :mod:`ellipath_ros.core.conveyor`): a pick's ``header.stamp`` is when the object
+was there; the pair is planned for a known start, published stamped at it (the controller
+holds the robot until then) and re-planned at release if that start has passed or the belt
+changed; an object the robot cannot reach inside the tracking window is rejected as
+``missed``.
+
 Only the position of a pose is used: the Delta robot has three translational degrees of
 freedom and its effector stays level, so the orientation is ignored. Poses must be in the
 ``frame_id`` frame (there is no tf2 lookup) and have finite coordinates.
