@@ -52,6 +52,7 @@ from ellipath_ros.parameters import parameter_defaults
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import TwistStamped
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -940,3 +941,19 @@ def test_node_reports_a_missed_object_and_publishes_nothing(make_harness):
     assert status.level == DiagnosticStatus.ERROR
     assert values_of(status)['kind'] == 'missed'
     assert trajectory is None
+
+
+def test_node_takes_the_belt_velocity_from_a_fresh_conveyor_twist(make_harness):
+    harness = make_harness({'conveyor_twist_timeout': 30.0})
+    publisher = harness.client.create_publisher(TwistStamped, 'conveyor_twist', 10)
+    assert harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    twist = TwistStamped()
+    twist.header.frame_id = 'base_link'
+    twist.twist.linear.x = 0.3
+    publisher.publish(twist)
+    assert harness.spin_until(lambda: harness.node._conveyor_twist is not None)
+    _, stamp = node_now(harness)
+    status, trajectory = harness.send_pair((-1.5, 0.0, -0.85), (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.OK, status.message
+    # conveyor_velocity is zero: only the twist makes this a belt pick, picked in the window.
+    assert float(values_of(status)['belt.window_position']) >= -0.3 - 1e-6
