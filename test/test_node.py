@@ -46,6 +46,7 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.sequencing import PairRequest
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings
 from ellipath_ros.parameters import parameter_defaults
@@ -957,3 +958,35 @@ def test_node_takes_the_belt_velocity_from_a_fresh_conveyor_twist(make_harness):
     assert status.level == DiagnosticStatus.OK, status.message
     # conveyor_velocity is zero: only the twist makes this a belt pick, picked in the window.
     assert float(values_of(status)['belt.window_position']) >= -0.3 - 1e-6
+
+
+def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
+    node = harness.node
+    settings = build_settings({name: node.get_parameter(name).value
+                               for name in parameter_defaults()})
+    latch, _ = node_now(harness)
+    # Latched far upstream, planned for a start already past: the plan waits for the object
+    # at the start, and that start has passed at release.
+    request = PairRequest(1, np.array([-3.0, 0.0, -0.85]), np.array([0.15, 0.2, -0.8]),
+                          time.monotonic(), 'pick_place', latch)
+    planned = node._plan(request, np.array(HOME), 'home_position', settings,
+                         belt_start=latch - 1.0)
+    wait = planned.details['plan'].intercept.wait
+    assert wait > 1.0
+    # Its start has passed: started later by as much, its wait shortened, the motion after
+    # the wait the same on the absolute clock.
+    later = node._checked_belt(planned, settings)
+    delay = later.details['belt_start'] - planned.details['belt_start']
+    assert 0.0 < delay < wait
+    assert np.allclose(later.trajectory.time_from_start[1:] + delay,
+                       planned.trajectory.time_from_start[1:], atol=1e-9)
+    assert np.array_equal(later.trajectory.positions, planned.trajectory.positions)
+    # The belt changed beyond conveyor_replan_tolerance: planned again for the new speed.
+    node.set_parameters([Parameter('conveyor_velocity', value=[0.25, 0.0, 0.0])])
+    settings = build_settings({name: node.get_parameter(name).value
+                               for name in parameter_defaults()})
+    replanned = node._checked_belt(later, settings)
+    assert np.allclose(replanned.details['belt_velocity'], [0.25, 0.0, 0.0])
+    old_pick = later.details['plan'].intercept.pick_time
+    assert replanned.details['plan'].intercept.pick_time != old_pick
