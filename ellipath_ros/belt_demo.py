@@ -27,6 +27,7 @@ speed relative to the object during the pick dwell, and the peaks against the li
 """
 
 import math
+import os
 import sys
 
 from ellipath_ros.core.controller import executed_tcp
@@ -57,6 +58,8 @@ RELATIVE_SPEED = 1e-3  # m/s
 # Dwell samples for the relative speed, and their central-difference step [s].
 DWELL_SAMPLES = 36
 SPEED_STEP = 1e-5
+# Time step of the figure's curves [s].
+FIGURE_STEP = 1e-3
 
 
 def add_belt_arguments(parser):
@@ -212,6 +215,39 @@ def format_belt_report(result):
     lines += [f"missed object {miss['object']}: {miss['reason']}" for miss in result['misses']]
     lines += [f'failed: {text}' for text in failures(result)]
     return '\n'.join(lines) + '\n'
+
+
+def write_belt_figure(plan, pick, velocity, latch_time, out_dir):
+    """
+    Draw one belt cycle as executed, in the base frame and in the belt frame; return the path.
+
+    Horizontal axis: the TCP along the belt direction, in the base frame and less the belt's
+    travel since the latch (there the object stands still: the descent and the lift are
+    vertical lines onto it). Needs matplotlib (the ``plot`` extra).
+    """
+    from ellipath_ros.paper.plotting import _new_figure, _save
+    trajectory = plan.joint_trajectory
+    t = np.arange(0.0, trajectory.duration, FIGURE_STEP)
+    tcp = forward_kinematics(quintic_interpolate(trajectory, t)[0], PlannerConfig().geometry)
+    direction = velocity / np.linalg.norm(velocity)
+    along = tcp @ direction
+    travel = np.linalg.norm(velocity) * (plan.start_time + t - latch_time)
+    object_along = float(np.dot(pick, direction))
+    figure, axes = _new_figure(1, 2, size=(10.0, 4.0))
+    for axis, horizontal, title in ((axes[0, 0], along, 'base frame'),
+                                    (axes[0, 1], along - travel, 'belt frame (object fixed)')):
+        axis.plot(horizontal, tcp[:, 2], color='tab:blue', label='executed TCP')
+        axis.set_title(title)
+        axis.set_xlabel('along the belt [m]')
+        axis.set_ylabel('z [m]')
+        axis.set_aspect('equal', adjustable='datalim')
+    pick_time = plan.intercept.pick_time
+    axes[0, 0].plot([object_along, object_along + np.linalg.norm(velocity) * (
+        pick_time - latch_time)], [pick[2]] * 2, color='tab:orange', label='object')
+    axes[0, 1].plot([object_along], [pick[2]], 'o', color='tab:orange', label='object')
+    axes[0, 0].legend()
+    os.makedirs(out_dir, exist_ok=True)
+    return _save(figure, out_dir, 'belt_cycle.png')
 
 
 def run_belt_demo(args):

@@ -26,11 +26,13 @@ import json
 import math
 import sys
 
+from ellipath_ros.belt_demo import write_belt_figure
 from ellipath_ros.core.conveyor import Conveyor, plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import ARC_POLICIES, JOINS
 from ellipath_ros.core.planner import CORE_DEFAULTS, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import PROFILES
+import numpy as np
 
 # CLI option -> flat parameter name (the node's); defaults come from CORE_DEFAULTS.
 _PLAN_OPTIONS = (
@@ -117,12 +119,16 @@ def _add_belt_arguments(parser):
                         '(default: %(default)s)')
 
 
+def _conveyor_from(args):
+    return Conveyor(velocity=args.conveyor_velocity,
+                    place_velocity=args.place_conveyor_velocity,
+                    window_upstream=args.tracking_window[0],
+                    window_downstream=args.tracking_window[1])
+
+
 def _belt_result(args, config):
     """Plan a belt cycle; return its JSON-ready result dict, or None on still belts."""
-    conveyor = Conveyor(velocity=args.conveyor_velocity,
-                        place_velocity=args.place_conveyor_velocity,
-                        window_upstream=args.tracking_window[0],
-                        window_downstream=args.tracking_window[1])
+    conveyor = _conveyor_from(args)
     if not conveyor.moving:
         return None
     plan = plan_belt_cycle(args.start, args.pick, args.place, config, conveyor,
@@ -270,7 +276,14 @@ def _run_plot(args):
     try:
         from ellipath_ros.paper.plotting import write_figures
         config = _config_from(args)
-        written = write_figures(args.pick, args.place, args.out, config)
+        conveyor = _conveyor_from(args)
+        if conveyor.moving:
+            plan = plan_belt_cycle(args.start, args.pick, args.place, config, conveyor,
+                                   pick_dwell=args.pick_dwell, latch_time=args.pick_time)
+            written = [write_belt_figure(plan, np.array(args.pick), conveyor.velocity,
+                                         args.pick_time, args.out)]
+        else:
+            written = write_figures(args.pick, args.place, args.out, config)
     except ImportError as error:
         sys.stderr.write(f'ellipath plot: {error}\n')
         return 2
@@ -299,6 +312,7 @@ def build_parser():
     plan.set_defaults(run=_run_plan)
     plot = commands.add_parser('plot', help="write the paper's figures for a pick/place as PNG")
     _add_plan_arguments(plot)
+    _add_belt_arguments(plot)
     plot.add_argument('--out', default='figures', help='output folder (default: %(default)s)')
     plot.set_defaults(run=_run_plot)
     # The demo's options and argument types (importing the demo needs no ROS).

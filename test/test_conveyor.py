@@ -258,3 +258,13 @@ def test_belt_scenario_picks_on_the_object_and_reports_misses():
     assert all(miss['kind'] == 'missed' for miss in result['misses'])
     assert result['executed.max_tcp_to_object_at_pick'] <= ON_OBJECT
     assert 'picks/min' in format_belt_report(result)
+
+
+def test_cli_plot_draws_a_belt_cycle(tmp_path, capsys):
+    pytest.importorskip('matplotlib')
+    assert main(['plot', '--pick', '-0.2', '0', '-0.85', '--place', '0.15', '0.2', '-0.8',
+                 '--conveyor-velocity', '0.3', '0', '0', '--start', '0.15', '0.2', '-0.8',
+                 '--out', str(tmp_path)]) == 0
+    written = capsys.readouterr().out.split()
+    assert written == [str(tmp_path / 'belt_cycle.png')]
+    assert (tmp_path / 'belt_cycle.png').stat().st_size > 1000
