@@ -199,6 +199,13 @@ def test_place_onto_a_moving_tray_and_end_at_rest():
     assert np.linalg.norm(velocity[0] - belt(0.2, 0.0)) <= 1e-9
     trajectory = plan.joint_trajectory
     assert np.all(trajectory.velocities[-1] == 0.0)
+    # Executed: the TCP rides on the tray through the place dwell, then lifts off vertically.
+    arrival = plan.metrics['belt.pick_after_start'] + motion.duration
+    t = arrival + np.linspace(0.0, 0.03 + 0.01, 81)
+    tray = PLACE + np.outer(t - arrival, belt(0.2, 0.0))
+    offset = executed(plan, t) - tray
+    assert np.abs(offset[:, :2]).max() <= ON_OBJECT
+    assert np.abs(offset[t <= arrival + 0.03, 2]).max() <= ON_OBJECT
     found = dense_check(trajectory, CONFIG.geometry, step=4e-6, spread=5)
     assert_within_limits(found, CONFIG)
 
