@@ -26,9 +26,12 @@ import json
 import math
 import sys
 
+from ellipath_ros.belt_demo import write_belt_figure
+from ellipath_ros.core.conveyor import Conveyor, plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 from ellipath_ros.core.settings import SETTINGS
+import numpy as np
 
 # Options of ``plan`` and ``plot``: every row of the settings table that names one.
 _PLAN_SETTINGS = tuple(setting for setting in SETTINGS if setting.cli)
@@ -78,15 +81,73 @@ def _config_from(args):
                                     for setting in _PLAN_SETTINGS})
 
 
-def plan_result(args):
-    """Plan one transfer and return the JSON-ready result dict."""
-    config = _config_from(args)
-    leg = plan_transfer(args.pick, args.place, config)
-    result = leg.summary()
-    trajectory = leg.joint_trajectory
+# -- conveyor tracking (issue 12): a pick from a moving belt plans the whole cycle ----------
+def _add_belt_arguments(parser):
+    defaults = Conveyor()
+    parser.add_argument('--conveyor-velocity', nargs=3, type=float, default=[0.0, 0.0, 0.0],
+                        metavar=('VX', 'VY', 'VZ'), help='pick belt velocity in the base '
+                        'frame [m/s]; nonzero plans the whole cycle from --start, the TCP '
+                        'moving with the object from the descent to the lift (default: still)')
+    parser.add_argument('--pick-time', type=float, default=0.0, metavar='T',
+                        help='time at which the object was at --pick, the cycle starting at 0 '
+                        '[s] (default: %(default)s)')
+    parser.add_argument('--place-conveyor-velocity', nargs=3, type=float,
+                        default=[0.0, 0.0, 0.0], metavar=('VX', 'VY', 'VZ'),
+                        help='place belt (tray) velocity [m/s] (default: still)')
+    parser.add_argument('--tracking-window', nargs=2, type=float,
+                        default=[defaults.window_upstream, defaults.window_downstream],
+                        metavar=('UPSTREAM', 'DOWNSTREAM'), help='where picks may happen, '
+                        'along the belt direction [m] (default: %(default)s)')
+    parser.add_argument('--start', nargs=3, type=float, default=[0.0, 0.0, -0.8],
+                        metavar=('X', 'Y', 'Z'), help='TCP at rest at the cycle start, belt '
+                        'picks only [m] (default: %(default)s)')
+    parser.add_argument('--pick-dwell', type=float, default=0.0,
+                        help='dwell on the object, moving with it, belt picks only [s] '
+                        '(default: %(default)s)')
+
+
+def _conveyor_from(args):
+    return Conveyor(velocity=args.conveyor_velocity,
+                    place_velocity=args.place_conveyor_velocity,
+                    window_upstream=args.tracking_window[0],
+                    window_downstream=args.tracking_window[1])
+
+
+def _belt_result(args, config):
+    """Plan a belt cycle; return its JSON-ready result dict, or None on still belts."""
+    conveyor = _conveyor_from(args)
+    if not conveyor.moving:
+        return None
+    plan = plan_belt_cycle(args.start, args.pick, args.place, config, conveyor,
+                           pick_dwell=args.pick_dwell, latch_time=args.pick_time)
+    result = dict(plan.metrics)
+    result.update({'start': list(args.start), 'pick': list(args.pick),
+                   'pick_time': args.pick_time, 'place': list(args.place),
+                   'conveyor_velocity': list(args.conveyor_velocity),
+                   'pick_position': None if plan.intercept is None
+                   else plan.intercept.pick_position.tolist(),
+                   'end_position': plan.end_position.tolist()})
+    return _with_trajectory(result, plan.joint_trajectory)
+
+
+def _format_belt(result):
+    """Return a short human-readable summary of a belt cycle (planned and executed peaks)."""
+    lines = [f"belt cycle: {result['duration'] * 1e3:.5g} ms, {result['n_points']} points; "
+             f"pick at {result['belt.pick_after_start']:.6g} s (after a wait of "
+             f"{result['belt.wait'] * 1e3:.4g} ms), at {result['belt.window_position']:.4g} m "
+             f"along the belt, {result['belt.margin_distance']:.4g} m "
+             f"({result['belt.margin_time']:.4g} s) before the window's end"]
+    for leg in ('approach', 'transfer'):
+        for kind in ('planned', 'executed'):
+            lines.append(
+                f"{leg} {kind} peaks (base frame): {result[f'{leg}.{kind}.peak_speed']:.5g} "
+                f"m/s, {result[f'{leg}.{kind}.peak_accel']:.5g} m/s^2, "
+                f"{result[f'{leg}.{kind}.peak_jerk']:.5g} m/s^3")
+    return '\n'.join(lines) + '\n'
+
+
+def _with_trajectory(result, trajectory):
     result.update({
-        'pick': list(args.pick),
-        'place': list(args.place),
         'joint_names': list(trajectory.joint_names),
         'joint_trajectory': {
             'time_from_start': trajectory.time_from_start.tolist(),
@@ -96,6 +157,18 @@ def plan_result(args):
         },
     })
     return result
+
+
+def plan_result(args):
+    """Plan one transfer (or, on a moving belt, a whole cycle); return the JSON-ready dict."""
+    config = _config_from(args)
+    belt = _belt_result(args, config)
+    if belt is not None:
+        return belt
+    leg = plan_transfer(args.pick, args.place, config)
+    result = leg.summary()
+    result.update({'pick': list(args.pick), 'place': list(args.place)})
+    return _with_trajectory(result, leg.joint_trajectory)
 
 
 def _format_human(result):
@@ -144,7 +217,8 @@ def _run_plan(args):
     if args.json:
         sys.stdout.write(json.dumps(_finite(result), allow_nan=False) + '\n')
     else:
-        sys.stdout.write(_format_human(result))
+        sys.stdout.write(_format_belt(result) if 'belt.pick_after_start' in result
+                         else _format_human(result))
     return 0
 
 
@@ -183,7 +257,14 @@ def _run_plot(args):
     try:
         from ellipath_ros.paper.plotting import write_figures
         config = _config_from(args)
-        written = write_figures(args.pick, args.place, args.out, config)
+        conveyor = _conveyor_from(args)
+        if conveyor.moving:
+            plan = plan_belt_cycle(args.start, args.pick, args.place, config, conveyor,
+                                   pick_dwell=args.pick_dwell, latch_time=args.pick_time)
+            written = [write_belt_figure(plan, np.array(args.pick), conveyor.velocity,
+                                         args.pick_time, args.out)]
+        else:
+            written = write_figures(args.pick, args.place, args.out, config)
     except ImportError as error:
         sys.stderr.write(f'ellipath plot: {error}\n')
         return 2
@@ -208,9 +289,11 @@ def build_parser():
     commands = parser.add_subparsers(dest='command', required=True)
     plan = commands.add_parser('plan', help='plan one pick-and-place transfer')
     _add_plan_arguments(plan)
+    _add_belt_arguments(plan)
     plan.set_defaults(run=_run_plan)
     plot = commands.add_parser('plot', help="write the paper's figures for a pick/place as PNG")
     _add_plan_arguments(plot)
+    _add_belt_arguments(plot)
     plot.add_argument('--out', default='figures', help='output folder (default: %(default)s)')
     plot.set_defaults(run=_run_plot)
     # The demo's options and argument types (importing the demo needs no ROS).

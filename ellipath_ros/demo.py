@@ -54,6 +54,8 @@ import sys
 import threading
 import time
 
+from ellipath_ros.belt_demo import add_belt_arguments
+from ellipath_ros.belt_demo import run_belt_demo
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.motion import PROFILES
 from ellipath_ros.demo_report import evaluate_run
@@ -128,6 +130,7 @@ def add_arguments(parser):
         '--domain-id', type=_domain_id, default=None,
         help=f'ROS domain id (default: ROS_DOMAIN_ID if set, else {DEFAULT_DOMAIN_ID}); DDS '
              'stays on this host unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise')
+    add_belt_arguments(parser)
 
 
 def _positive_int(text):
@@ -217,7 +220,7 @@ def run_demo(args):
 
     """
     try:
-        return _run(args)
+        return run_belt_demo(args) if args.belt else _run(args)
     except KeyboardInterrupt:
         sys.stderr.write('\nellipath demo: interrupted\n')
         return EXIT_INTERRUPTED

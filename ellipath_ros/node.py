@@ -26,6 +26,13 @@ Interface (topic names are relative and remappable):
 * serves ``~/clear_queue`` (std_srvs/Trigger): drops every pair waiting or held, never the
   running trajectory.
 
+Conveyor tracking (``conveyor_velocity`` or a fresh ``conveyor_twist``, geometry_msgs/
+TwistStamped; :mod:`ellipath_ros.core.conveyor`): a pick's ``header.stamp`` is when the object
+was there; the pair is planned for a known start, published stamped at it (the controller
+holds the robot until then) and re-planned at release if that start has passed or the belt
+changed; an object the robot cannot reach inside the tracking window is rejected as
+``missed``.
+
 Only the position of a pose is used: the Delta robot has three translational degrees of
 freedom and its effector stays level, so the orientation is ignored. Poses must be in the
 ``frame_id`` frame (there is no tf2 lookup) and have finite coordinates.
@@ -56,6 +63,7 @@ current values, and an invalid change is refused with its reason while the previ
 configuration stays in force.
 """
 
+import dataclasses
 import os
 import signal
 import sys
@@ -75,6 +83,7 @@ from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
+from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
@@ -92,6 +101,8 @@ from ellipath_ros.parameters import parameter_declarations
 from ellipath_ros.parameters import PARAMETER_NAMES
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import TwistStamped
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
@@ -142,6 +153,17 @@ WORKER_POLL = 0.1
 # end, but needs the GIL, which a planning thread in NumPy code keeps for up to the switch
 # interval (5 ms by default): 0.5 ms bounds that delay of the release.
 SWITCH_INTERVAL = 0.0005
+# A belt pick starts at a time planned in advance (the intercept depends on it): at least this
+# many times the last belt plan's duration after the plan starts (while idle), never less
+# than BELT_LEAD_MIN, and BELT_START_MARGIN after the motion queued before it, which absorbs
+# the release thread's delay, so that the planned start is still ahead at release.
+BELT_LEAD_FACTOR = 2.0
+BELT_LEAD_MIN = 0.1  # s
+BELT_START_MARGIN = 0.02  # s
+# The duration of a belt plan assumed before the first one has been timed [s].
+BELT_PLAN_TIME_GUESS = 0.5
+# A belt pick started later by shortening its initial wait keeps at least this much of it [s].
+MIN_WAIT_LEFT = 1e-3
 
 
 class OffTrajectoryError(EllipathError):
@@ -206,6 +228,11 @@ class EllipathNode(Node):
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_subscription(TwistStamped, 'conveyor_twist', self._on_conveyor_twist,
+                                 qos_profile_sensor_data,
+                                 callback_group=MutuallyExclusiveCallbackGroup())
+        self._conveyor_twist = None  # (velocity (3,), time.monotonic() at arrival)
+        self._belt_plan_time = BELT_PLAN_TIME_GUESS  # duration of the last belt plan [s]
         self.create_service(Trigger, '~/clear_queue', self._on_clear_queue)
         self._trajectory_publisher = self.create_publisher(
             JointTrajectory, 'joint_trajectory', depth)
@@ -286,6 +313,28 @@ class EllipathNode(Node):
             self._latest_joint_state = (message, time.monotonic())
             self._joint_state_arrived.notify_all()
 
+    def _on_conveyor_twist(self, message):
+        """Remember the belt velocity of a finite conveyor_twist and when it arrived."""
+        linear = message.twist.linear
+        velocity = np.array([linear.x, linear.y, linear.z], dtype=float)
+        if not np.all(np.isfinite(velocity)):
+            self.get_logger().warn(f'conveyor_twist: expected a finite linear velocity, got '
+                                   f'{velocity.tolist()}: ignored', throttle_duration_sec=10.0)
+            return
+        self._conveyor_twist = (velocity, time.monotonic())
+
+    def _conveyor(self, settings):
+        """Return the belts now: conveyor_velocity, or a fresh conveyor_twist's velocity."""
+        twist = self._conveyor_twist
+        if twist is None or time.monotonic() - twist[1] > settings.conveyor_twist_timeout:
+            return settings.conveyor
+        return dataclasses.replace(settings.conveyor, velocity=twist[0])
+
+    def _latch_time(self, stamp):
+        """Return a pick's header.stamp [s] on the node clock; zero means now (on receipt)."""
+        seconds = seconds_from_time(stamp)
+        return seconds if seconds > 0.0 else self.get_clock().now().nanoseconds * 1e-9
+
     def _on_pick(self, message):
         """Store a valid pick pose until its place arrives."""
         self._intake('pick_pose', self._take_pick, message)
@@ -345,11 +394,18 @@ class EllipathNode(Node):
         check_reachable(position, settings.planner.geometry, name=name)
         return position
 
+    def _checked_pick(self, name, position, settings):
+        """Return a finite pick; reachable too, unless on a moving belt (latched upstream)."""
+        if np.linalg.norm(self._conveyor(settings).velocity) > 0.0:
+            # Where the robot meets it is checked along the whole planned motion.
+            return require_point(name, position)
+        return self._checked_point(name, position, settings)
+
     def _take_pick(self, message, settings):
         """Validate a pick pose and keep it for its place."""
         self._checked_frame('pick_pose', message.header.frame_id, settings)
-        position = self._checked_point('pick_pose.pose.position', pose_position(message),
-                                       settings)
+        position = self._checked_pick('pick_pose.pose.position', pose_position(message),
+                                      settings)
         warning = self._pairing.add_pick(_stamp_key(message.header.stamp), position,
                                          settings.pairing, settings.queue_depth)
         if warning is not None:
@@ -364,7 +420,9 @@ class EllipathNode(Node):
         self._checked_frame('place_pose', message.header.frame_id, settings)
         place = self._checked_point('place_pose.pose.position', pose_position(message),
                                     settings)
-        self._sequencer.submit(pick, place, 'place_pose')
+        # With stamp pairing the place's stamp is the pick's: the time the object was there.
+        self._sequencer.submit(pick, place, 'place_pose',
+                               self._latch_time(message.header.stamp))
 
     def _take_pick_place(self, message, settings):
         """Validate a [pick, place] PoseArray and queue the pair."""
@@ -374,9 +432,9 @@ class EllipathNode(Node):
             raise InvalidInputError(
                 f'pick_place.poses: expected exactly 2 poses [pick, place], got '
                 f'{len(positions)}')
-        pick = self._checked_point('pick_place.poses[0].position', positions[0], settings)
+        pick = self._checked_pick('pick_place.poses[0].position', positions[0], settings)
         place = self._checked_point('pick_place.poses[1].position', positions[1], settings)
-        self._sequencer.submit(pick, place, 'pick_place')
+        self._sequencer.submit(pick, place, 'pick_place', self._latch_time(message.header.stamp))
 
     def _on_clear_queue(self, request, response):
         """Drop every pair waiting or held; the running trajectory goes on."""
@@ -433,11 +491,28 @@ class EllipathNode(Node):
         # None if cleared while planned: the clear_queue status names it.
         self._sequencer.plan_finished(motion)
 
-    def _plan(self, request, start, start_source, settings):
-        """Plan a pair from ``start``; return the PlannedMotion holding its message."""
+    def _plan(self, request, start, start_source, settings, belt_start=None):
+        """
+        Plan a pair from ``start``; return the PlannedMotion holding its message.
+
+        On a moving belt the plan starts at a known time (node clock, s; ``belt_start``, or
+        chosen by :meth:`_belt_start`), kept in ``details['belt_start']`` for the release.
+        """
         started = time.perf_counter()
-        plan = plan_cycle(start, request.pick, request.place, settings.planner,
-                          pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
+        conveyor = self._conveyor(settings)
+        details = {}
+        if conveyor.moving:
+            start_time = (self._belt_start(start_source) if belt_start is None
+                          else belt_start)
+            plan = plan_belt_cycle(start, request.pick, request.place, settings.planner,
+                                   conveyor, pick_dwell=settings.pick_dwell,
+                                   place_dwell=settings.place_dwell,
+                                   latch_time=request.latch_time, start_time=start_time)
+            self._belt_plan_time = time.perf_counter() - started
+            details = {'belt_start': start_time, 'belt_velocity': conveyor.velocity}
+        else:
+            plan = plan_cycle(start, request.pick, request.place, settings.planner,
+                              pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
         message = joint_trajectory_message(plan.joint_trajectory, settings.frame_id,
                                            Time())
         # Check what is actually sent, after the conversion to whole nanoseconds.
@@ -447,7 +522,25 @@ class EllipathNode(Node):
             request, trajectory, require_point('start', start), plan.end_position,
             time.perf_counter() - started,
             details={'message': message, 'plan': plan, 'metrics': plan.metrics,
-                     'start_source': start_source})
+                     'start_source': start_source, **details})
+
+    def _belt_start(self, start_source):
+        """
+        Return when a belt pick planned now will start (node clock, s).
+
+        After the motions queued before it (their planned ends, a belt pick's exactly)
+        plus ``BELT_START_MARGIN``; while idle, the planning time ahead (see BELT_LEAD_*).
+        """
+        now_clock = time.monotonic()
+        now = self.get_clock().now().nanoseconds * 1e-9
+        start = now + max(BELT_LEAD_MIN, BELT_LEAD_FACTOR * self._belt_plan_time)
+        if start_source == 'queue_tail':
+            queue_end = now + self._sequencer.predicted_end(now_clock) - now_clock
+            tail = self._sequencer.tail_motion()
+            if tail is not None and 'belt_start' in tail.details:
+                queue_end = max(queue_end, tail.details['belt_start'] + tail.duration)
+            start = max(start, queue_end + BELT_START_MARGIN)
+        return start
 
     def _start_position(self, settings):
         """Return the TCP start of a cycle while the robot is at rest, and its source."""
@@ -518,7 +611,13 @@ class EllipathNode(Node):
             self._sequencer.release_failed()
             return
         message = motion.details['message']
-        if settings.header_stamp == 'ahead':
+        belt_start = motion.details.get('belt_start')
+        if belt_start is not None:
+            published, start_time = self._publish_belt(motion, message)
+            release = self._sequencer.released(motion, published, 'ahead',
+                                               settings.controller_period,
+                                               settings.release_lead, start=start_time)
+        elif settings.header_stamp == 'ahead':
             # The stamp and the node's record of it come from back-to-back clock readings.
             published = time.monotonic()
             now = self.get_clock().now()
@@ -540,14 +639,67 @@ class EllipathNode(Node):
             # Read after publishing, so the latest start (this + controller_period) is not
             # underestimated by the time publish() takes.
             published = time.monotonic()
-        release = self._sequencer.released(motion, published, settings.header_stamp,
-                                           settings.controller_period, settings.release_lead)
+        if belt_start is None:
+            release = self._sequencer.released(motion, published, settings.header_stamp,
+                                               settings.controller_period,
+                                               settings.release_lead)
         self._last_end_position = motion.end_position
         self._publish_status(DiagnosticStatus.OK, 'released',
                              self._release_values(release, check))
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(
                 motion.details['plan'], settings.frame_id, message.header.stamp))
+
+    def _publish_belt(self, motion, message):
+        """
+        Publish a belt pick stamped at its planned start; return (published, start) clock times.
+
+        The controller holds the robot at the first point until the stamp, so the motion
+        starts exactly when its intercept was planned for.
+        """
+        belt_start = motion.details['belt_start']
+        published = time.monotonic()
+        now = self.get_clock().now()
+        start_ns = int(round(belt_start * 1e9))
+        message.header.stamp = Time(sec=start_ns // 1_000_000_000,
+                                    nanosec=start_ns % 1_000_000_000)
+        self._trajectory_publisher.publish(message)
+        clock_start = published + (start_ns - now.nanoseconds) * 1e-9
+        last = message.points[-1].time_from_start
+        last_ns = last.sec * 1_000_000_000 + last.nanosec
+        self._ahead_end = (clock_start + last_ns * 1e-9,
+                           now + Duration(nanoseconds=start_ns + last_ns - now.nanoseconds))
+        return published, clock_start
+
+    def _checked_belt(self, motion, settings):
+        """
+        Return the belt pick re-planned if its planned start has passed or the belt changed.
+
+        A pick whose start is less than release_lead ahead, or planned for a belt velocity
+        more than conveyor_replan_tolerance from the current one, is planned again from the
+        same start point (its intercept depends on both); an object missed by then raises.
+        """
+        belt_start = motion.details.get('belt_start')
+        if belt_start is None:
+            return motion
+        now = self.get_clock().now().nanoseconds * 1e-9
+        change = np.linalg.norm(self._conveyor(settings).velocity
+                                - motion.details['belt_velocity'])
+        if (belt_start >= now + settings.release_lead
+                and change <= settings.conveyor_replan_tolerance):
+            return motion
+        late = now + settings.release_lead + BELT_START_MARGIN - belt_start
+        if change <= settings.conveyor_replan_tolerance:
+            delayed = _delayed_belt_start(motion, late, settings.frame_id)
+            if delayed is not None:
+                return delayed
+        reason = ('its planned start has passed' if belt_start < now + settings.release_lead
+                  else f'the belt velocity changed by {change:.4g} m/s')
+        self.get_logger().warn(f'pair {motion.request.number}: {reason}: re-planned')
+        start = now + max(BELT_LEAD_MIN, BELT_LEAD_FACTOR * self._belt_plan_time)
+        return self._plan(motion.request, motion.start_position,
+                          f'replanned_{motion.details["start_source"]}', settings,
+                          belt_start=start)
 
     def _checked_start(self, motion, settings):
         """Return (motion, StartCheck): the motion re-planned if the robot is elsewhere."""
@@ -571,7 +723,7 @@ class EllipathNode(Node):
                 f'the start of its trajectory ({check.basis}): re-planned from there')
             motion = self._plan(motion.request, check.position, f'replanned_{check.basis}',
                                 settings)
-        return motion, check
+        return self._checked_belt(motion, settings), check
 
     def _joint_state_after(self, after, settings):
         """Wait up to joint_state_timeout for a joint state measured after ``after``."""
@@ -607,6 +759,9 @@ class EllipathNode(Node):
                   'plan_time': motion.plan_time, 'duration': motion.duration,
                   'receive_to_publish_latency': release.published - motion.request.received,
                   'robot_waited_for_planner': str(release.waited_for_planner).lower()}
+        # Per belt pick: intercept time, position along the window and the margin left.
+        values.update((key, value) for key, value in motion.details['metrics'].items()
+                      if key.startswith('belt.'))
         gap = release.predicted_gap()
         if gap is not None:
             values.update(release_delay=release.release_delay(),
@@ -631,6 +786,29 @@ class EllipathNode(Node):
         self._diagnostics_publisher.publish(diagnostic_array(
             self.get_clock().now().to_msg(), self._status_name,
             self.get_fully_qualified_name(), level, message, values))
+
+
+def _delayed_belt_start(motion, delay, frame_id):
+    """
+    Return the belt pick started ``delay`` s later with the same motion after its wait, or None.
+
+    A pick planned with a wait at the start (its object was upstream of the window) runs
+    the same absolute motion from a later start if the wait is shortened by as much: the
+    intercept holds exactly and nothing is re-planned. None when the wait is too short.
+    """
+    plan = motion.details['plan']
+    wait = plan.intercept.wait if plan.intercept is not None else 0.0
+    if delay >= wait - MIN_WAIT_LEFT:
+        return None
+    trajectory = motion.trajectory
+    times = trajectory.time_from_start.copy()
+    times[1:] -= delay
+    shortened = dataclasses.replace(trajectory, time_from_start=times)
+    message = joint_trajectory_message(shortened, frame_id, Time())
+    metrics = {**motion.details['metrics'], 'belt.wait': wait - delay}
+    return dataclasses.replace(motion, trajectory=joint_trajectory_data(message), details={
+        **motion.details, 'message': message, 'metrics': metrics,
+        'belt_start': motion.details['belt_start'] + delay})
 
 
 def _stamp_key(stamp):

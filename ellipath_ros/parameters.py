@@ -31,6 +31,7 @@ ones, so a change is accepted or rejected as a whole). The descriptor's descript
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from ellipath_ros.core.conveyor import Conveyor
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.planner import PlannerConfig
@@ -129,6 +130,12 @@ class NodeSettings:
         TCP start used when nothing better is known [m].
     joint_state_timeout : float
         Age above which a joint state is not used as the start [s].
+    conveyor : Conveyor
+        Belt velocities (from the parameters) and the tracking window.
+    conveyor_twist_timeout : float
+        How long a conveyor_twist overrides conveyor_velocity [s].
+    conveyor_replan_tolerance : float
+        Belt velocity change that makes a held belt pick be re-planned at release [m/s].
 
     """
 
@@ -144,6 +151,9 @@ class NodeSettings:
     place_dwell: float
     home_position: tuple
     joint_state_timeout: float
+    conveyor: Conveyor
+    conveyor_twist_timeout: float
+    conveyor_replan_tolerance: float
 
 
 def build_settings(values):
@@ -185,5 +195,10 @@ def build_settings(values):
         else:
             node_values[setting.name] = setting.check(value)
     home_position = require_point('home_position', node_values.pop('home_position'))
+    conveyor = Conveyor(velocity=node_values.pop('conveyor_velocity'),
+                        place_velocity=node_values.pop('place_conveyor_velocity'),
+                        window_upstream=node_values.pop('tracking_window_upstream'),
+                        window_downstream=node_values.pop('tracking_window_downstream'))
     return NodeSettings(planner=PlannerConfig.from_flat(core_values),
-                        home_position=tuple(home_position.tolist()), **node_values)
+                        home_position=tuple(home_position.tolist()), conveyor=conveyor,
+                        **node_values)

@@ -45,7 +45,8 @@ import sys
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
 from ellipath_ros.core import geometry, timing
 from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
-from ellipath_ros.core.timing import CartesianLimits, time_motion
+from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.timing import time_motion
 import numpy as np
 from numpy.polynomial import Polynomial
 

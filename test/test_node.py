@@ -46,12 +46,14 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.sequencing import PairRequest
 from ellipath_ros.core.settings import default_values
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import TwistStamped
 import numpy as np
 import pytest
 from rclpy.executors import SingleThreadedExecutor
@@ -899,3 +901,92 @@ def test_pick_place_pairs_never_mix_with_the_pose_topics(make_harness):
     assert harness.node.pending_pick_count == 1
     status, trajectory = harness.send_place(PICK, stamp=Time(sec=5))
     assert status.level == DiagnosticStatus.OK and distance_to(trajectory, OTHER_PICK) < PASSES
+
+
+# --- conveyor tracking (issue 12) -------------------------------------------------------------
+
+def node_now(harness):
+    """Return the node clock now [s] and as a builtin_interfaces/Time."""
+    now = harness.node.get_clock().now()
+    return now.nanoseconds * 1e-9, now.to_msg()
+
+
+def test_node_picks_from_a_moving_belt_at_the_planned_instant(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0], 'pick_dwell': 0.05})
+    latch, stamp = node_now(harness)
+    pick = np.array([-1.5, 0.05, -0.85])
+    status, trajectory = harness.send_pair(pick, (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.OK, status.message
+    values = values_of(status)
+    # The trajectory was received before its stamp: the controller holds the robot until then,
+    # so it starts exactly when its intercept was planned for (node clock = system time).
+    start = stamp_seconds(trajectory)
+    received = harness.received[-1][0] + time.time() - time.monotonic()
+    assert received < start
+    planned = [values_of(item) for item in harness.statuses if item.message == 'planned']
+    after_latch = float(planned[-1]['belt.pick_after_latch'])
+    assert float(planned[-1]['belt.margin_distance']) >= 0.0
+    assert 'belt.window_position' in values
+    data = joint_trajectory_data(trajectory)
+    q, _, _ = quintic_interpolate(data, np.array([latch + after_latch - start]))
+    tcp = forward_kinematics(q, GEOMETRY)[0]
+    expected = pick + np.array([0.3, 0.0, 0.0]) * after_latch
+    assert np.linalg.norm(tcp - expected) <= 1e-4
+
+
+def test_node_reports_a_missed_object_and_publishes_nothing(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0],
+                            'tracking_window_downstream': 0.2})
+    _, stamp = node_now(harness)
+    status, trajectory = harness.send_pair([0.19, 0.0, -0.85], (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.ERROR
+    assert values_of(status)['kind'] == 'missed'
+    assert trajectory is None
+
+
+def test_node_takes_the_belt_velocity_from_a_fresh_conveyor_twist(make_harness):
+    harness = make_harness({'conveyor_twist_timeout': 30.0})
+    publisher = harness.client.create_publisher(TwistStamped, 'conveyor_twist', 10)
+    assert harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+    twist = TwistStamped()
+    twist.header.frame_id = 'base_link'
+    twist.twist.linear.x = 0.3
+    publisher.publish(twist)
+    assert harness.spin_until(lambda: harness.node._conveyor_twist is not None)
+    _, stamp = node_now(harness)
+    status, trajectory = harness.send_pair((-1.5, 0.0, -0.85), (0.15, 0.2, -0.8), stamp=stamp)
+    assert status.level == DiagnosticStatus.OK, status.message
+    # conveyor_velocity is zero: only the twist makes this a belt pick, picked in the window.
+    assert float(values_of(status)['belt.window_position']) >= -0.3 - 1e-6
+
+
+def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
+    node = harness.node
+    settings = build_settings({name: node.get_parameter(name).value
+                               for name in default_values()})
+    latch, _ = node_now(harness)
+    # Latched far upstream, planned for a start already past: the plan waits for the object
+    # at the start, and that start has passed at release.
+    request = PairRequest(1, np.array([-3.0, 0.0, -0.85]), np.array([0.15, 0.2, -0.8]),
+                          time.monotonic(), 'pick_place', latch)
+    planned = node._plan(request, np.array(HOME), 'home_position', settings,
+                         belt_start=latch - 1.0)
+    wait = planned.details['plan'].intercept.wait
+    assert wait > 1.0
+    # Its start has passed: started later by as much, its wait shortened, the motion after
+    # the wait the same on the absolute clock.
+    later = node._checked_belt(planned, settings)
+    delay = later.details['belt_start'] - planned.details['belt_start']
+    assert 0.0 < delay < wait
+    assert np.allclose(later.trajectory.time_from_start[1:] + delay,
+                       planned.trajectory.time_from_start[1:], atol=1e-9)
+    assert np.array_equal(later.trajectory.positions, planned.trajectory.positions)
+    # The belt changed beyond conveyor_replan_tolerance: planned again for the new speed.
+    node.set_parameters([Parameter('conveyor_velocity', value=[0.25, 0.0, 0.0])])
+    settings = build_settings({name: node.get_parameter(name).value
+                               for name in default_values()})
+    replanned = node._checked_belt(later, settings)
+    assert np.allclose(replanned.details['belt_velocity'], [0.25, 0.0, 0.0])
+    old_pick = later.details['plan'].intercept.pick_time
+    assert replanned.details['plan'].intercept.pick_time != old_pick

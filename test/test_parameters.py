@@ -33,7 +33,9 @@ import yaml
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 NODE_KEYS = {'frame_id', 'pairing', 'pick_dwell', 'place_dwell', 'home_position',
              'joint_state_timeout', 'header_stamp', 'queue_depth', 'controller_period',
-             'release_lead', 'start_tolerance'}
+             'release_lead', 'start_tolerance', 'conveyor_velocity', 'place_conveyor_velocity',
+             'tracking_window_upstream', 'tracking_window_downstream', 'conveyor_twist_timeout',
+             'conveyor_replan_tolerance'}
 
 
 def _yaml_parameters(name):

@@ -46,7 +46,7 @@ from ellipath_ros.core.settings import SECTIONS
 from ellipath_ros.core.settings import SETTING_BY_NAME
 from ellipath_ros.core.settings import SETTINGS
 from ellipath_ros.core.settings import validate
-from ellipath_ros.core.timing import CartesianLimits
+from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.workspace import SafeWorkspace
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings

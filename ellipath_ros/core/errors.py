@@ -61,6 +61,12 @@ class WorkspaceError(EllipathError):
     kind = 'workspace'
 
 
+class MissedError(EllipathError):
+    """A belt object leaves the tracking window before the robot can be on it."""
+
+    kind = 'missed'
+
+
 def require_finite(name, value):
     """Return ``value`` as float, or raise if it is not a finite number."""
     try:

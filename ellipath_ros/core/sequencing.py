@@ -145,6 +145,8 @@ class PairRequest:
         Clock time of the intake [s].
     topic : str
         Where the pair came from (``place_pose`` or ``pick_place``), for statuses.
+    latch_time : float or None
+        When the object was at ``pick`` (its header.stamp, node clock) [s]; belt picks.
 
     """
 
@@ -153,6 +155,7 @@ class PairRequest:
     place: np.ndarray
     received: float
     topic: str
+    latch_time: object = None
 
 
 @dataclass(frozen=True)
@@ -387,6 +390,13 @@ class Sequencer:
             last = self._last_release
         return last if last is not None and now < last.latest_end else None
 
+    def tail_motion(self):
+        """Return the motion the next plan follows (last held, else releasing), or None."""
+        with self._condition:
+            if self._held:
+                return self._held[-1]
+            return self._releasing
+
     def predicted_end(self, now=None):
         """
         Return the latest clock time at which every held motion has ended [s].
@@ -403,9 +413,11 @@ class Sequencer:
 
     # --- intake -----------------------------------------------------------------------------
 
-    def submit(self, pick, place, topic):
+    def submit(self, pick, place, topic, latch_time=None):
         """
         Take a pair into the queue and return its :class:`PairRequest`.
+
+        ``latch_time``: when the object was at ``pick`` (belt picks), see PairRequest.
 
         Raises
         ------
@@ -423,7 +435,8 @@ class Sequencer:
                     f'{self._length()} pairs queued (queue_depth {self.depth}): the newest '
                     'pair is rejected')
             request = PairRequest(self._numbers, np.array(pick, dtype=float),
-                                  np.array(place, dtype=float), self.clock(), topic)
+                                  np.array(place, dtype=float), self.clock(), topic,
+                                  latch_time)
             self._waiting.append(request)
             self._condition.notify_all()
             return request
@@ -594,9 +607,12 @@ class Sequencer:
                                   None if last is None else last.latest_end)[2]
 
     def released(self, motion, published, header_stamp='zero', controller_period=0.002,
-                 release_lead=0.004):
+                 release_lead=0.004, start=None):
         """
         Record that ``motion`` (taken for release) was published at ``published``.
+
+        ``start``: the clock time of a stamp the caller chose (a belt pick starts exactly at
+        the time its intercept was planned for); by default the stamp follows ``header_stamp``.
 
         Returns
         -------
@@ -607,8 +623,9 @@ class Sequencer:
         with self._condition:
             previous = self._last_release
             previous_end = None if previous is None else previous.latest_end
-            earliest, latest, stamp = release_timing(published, header_stamp, controller_period,
-                                                     release_lead, previous_end)
+            earliest, latest, stamp = (
+                (start, start, start) if start is not None else release_timing(
+                    published, header_stamp, controller_period, release_lead, previous_end))
             release = Release(
                 motion, published, earliest, latest, stamp, previous_end,
                 None if previous is None else previous.earliest_end,

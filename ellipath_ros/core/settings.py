@@ -44,6 +44,7 @@ SECTIONS = {
     'timing': 'timing: TCP and joint limits',
     'output': 'trajectory output',
     'workspace': 'safe workspace (every plan is checked against it as executed)',
+    'conveyor': 'conveyor tracking (belt picks and places)',
 }
 
 
@@ -240,6 +241,30 @@ SETTINGS = (
          'release; also the longest wait at release for a joint state measured after the '
          'previous motion when the last one showed the robot off it; 0 never uses them',
          'ros', low=0.0, high=60.0),
+    # --- conveyor tracking ------------------------------------------------------------------
+    _row('conveyor_velocity', 'double_array', (0.0, 0.0, 0.0), 'm/s',
+         'Pick belt velocity (vx, vy, vz) in the base frame, speed at most 2 m/s; zero = '
+         'static picks. A fresh conveyor_twist overrides it. A pick header.stamp is the time '
+         'the object was at that position (zero = on receipt)', 'conveyor'),
+    _row('place_conveyor_velocity', 'double_array', (0.0, 0.0, 0.0), 'm/s',
+         'Place belt (tray) velocity in the base frame, zero or parallel to the pick belt; '
+         'zero = static places', 'conveyor'),
+    _row('tracking_window_upstream', 'double', -0.3, 'm',
+         'Tracking window: upstream limit along the pick belt direction (TCP position '
+         'projected on the unit belt velocity); an object upstream of it is picked as it '
+         'enters', 'conveyor', low=-10.0, high=10.0),
+    _row('tracking_window_downstream', 'double', 0.3, 'm',
+         'Tracking window: downstream limit, above the upstream one; an object that would '
+         'pass it before the robot can be on it is rejected as missed', 'conveyor',
+         low=-10.0, high=10.0),
+    _row('conveyor_twist_timeout', 'double', 0.5, 's',
+         'A conveyor_twist (geometry_msgs/TwistStamped, linear part, base frame) overrides '
+         'conveyor_velocity for this long after its arrival; 0 never uses it', 'conveyor',
+         low=0.0, high=60.0),
+    _row('conveyor_replan_tolerance', 'double', 0.001, 'm/s',
+         'At release, a belt pick planned for a belt velocity further than this from the '
+         'current one is re-planned (as is one whose planned start has passed)', 'conveyor',
+         low=0.0, high=1.0),
     # --- robot geometry and joint position limits -------------------------------------------
     _core('base_radius', 'double', 0.2, 'm', 'R: base centre to actuator axis', 'geometry',
           'DeltaGeometry.base_radius', low=0.0, low_open=True, high=5.0),
