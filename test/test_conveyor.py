@@ -27,8 +27,8 @@ from ellipath_ros.core.conveyor import (
 from ellipath_ros.core.errors import InvalidInputError, MissedError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
-from ellipath_ros.core.planner import plan_cycle, PlannerConfig
 from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.planner import plan_cycle, PlannerConfig
 import numpy as np
 import pytest
 from test_executed import assert_within_limits

@@ -39,6 +39,7 @@ from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy
 from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import JointLimits
+from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import PlannerConfig
 from ellipath_ros.core.settings import default_values
 from ellipath_ros.core.settings import KINDS
@@ -46,7 +47,6 @@ from ellipath_ros.core.settings import SECTIONS
 from ellipath_ros.core.settings import SETTING_BY_NAME
 from ellipath_ros.core.settings import SETTINGS
 from ellipath_ros.core.settings import validate
-from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.workspace import SafeWorkspace
 from ellipath_ros.node import EllipathNode
 from ellipath_ros.parameters import build_settings
