@@ -35,10 +35,10 @@ from ellipath_ros.core.controller import JazzyJtcEmulator
 from ellipath_ros.core.conveyor import Conveyor
 from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.joint_trajectory import executed_peaks
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
-from ellipath_ros.core.planner import executed_peaks
 from ellipath_ros.core.planner import PlannerConfig
 import numpy as np
 
