@@ -68,10 +68,13 @@ NUMERIC = [setting for setting in SETTINGS if setting.kind in ('double', 'intege
 COMPANIONS = {('base_radius', 'high'): {'forearm': 10.0},
               ('effector_radius', 'high'): {'forearm': 10.0}}
 # Bounds that the range allows but a rule between two settings always refuses, by the setting
-# the rule's message names: joint_min < joint_max, workspace_z_min < workspace_z_max.
+# the rule's message names: joint_min < joint_max, workspace_z_min < workspace_z_max,
+# tracking_window_upstream < tracking_window_downstream.
 CONFLICTS = {('joint_min', 'high'): 'joint_max', ('joint_max', 'low'): 'joint_max',
              ('workspace_z_min', 'high'): 'workspace_z_max',
-             ('workspace_z_max', 'low'): 'workspace_z_max'}
+             ('workspace_z_max', 'low'): 'workspace_z_max',
+             ('tracking_window_upstream', 'high'): 'tracking_window_downstream',
+             ('tracking_window_downstream', 'low'): 'tracking_window_downstream'}
 BOUND_CASES = [(setting, side) for setting in NUMERIC for side in ('low', 'high')]
 
 

@@ -141,7 +141,7 @@ class Conveyor:
         object.__setattr__(self, 'window_downstream', downstream)
         if downstream <= upstream:
             raise InvalidInputError(
-                f'tracking_window_downstream: expected more than tracking_window_upstream '
+                f'tracking_window_downstream: expected a value > tracking_window_upstream = '
                 f'{upstream:g} m, got {downstream:g} m')
         speeds = np.linalg.norm(self.velocity) * np.linalg.norm(self.place_velocity)
         if np.linalg.norm(np.cross(self.velocity, self.place_velocity)) > 1e-9 * speeds:
