@@ -476,8 +476,9 @@ def _joint_points(motion, config, bounds):
     a step of the jerk, and reaches up to 1.7 times the true jerk across one. So every
     segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` gets points at
     the jerk steps inside it of at least ``JERK_STEP_SHARE`` of the limit, or at its middle
-    if it has none, for up to ``KNOT_ROUNDS`` rounds. Samples output is checked, not
-    changed. The table (S, 5) has the peaks of each segment in ``EXECUTED_KEYS`` order.
+    if it has none, for up to ``KNOT_ROUNDS`` rounds and while a round lowers an exceeded
+    peak. Samples output is checked, not changed. The table (S, 5) has the peaks of each
+    segment in ``EXECUTED_KEYS`` order.
     """
     geometry = config.geometry
     if config.output_mode == 'samples':
@@ -490,6 +491,7 @@ def _joint_points(motion, config, bounds):
     step_times, step_sizes = motion.jerk_steps()
     steps = step_times[step_sizes >= JERK_STEP_SHARE * config.limits.max_jerk]
     table = executed_table(trajectory, geometry)
+    worst = table.max(axis=0) / bounds
     for _ in range(KNOT_ROUNDS):
         broken = np.flatnonzero((table > bounds).any(axis=1))
         if broken.size == 0:
@@ -502,6 +504,12 @@ def _joint_points(motion, config, bounds):
             added.extend(inside if inside.size else [0.5 * (start + end)])
         trajectory = _with_points(trajectory, motion, geometry, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
+        ratios = table.max(axis=0) / bounds
+        # Points mend what the quintic adds to the motion, not what the motion itself has:
+        # when a round lowers no exceeded peak, only the slow-down that follows can.
+        if not (ratios < worst)[worst > 1.0].any():
+            break
+        worst = ratios
     # The added points only bring the interpolation closer to the motion: the deviation
     # measured on the knots' own check grids still bounds it.
     return trajectory, error, table
