@@ -717,8 +717,8 @@ def plan_belt_cycle(start, pick, place, config=None, conveyor=None, *, pick_dwel
     start = require_point('start', start)
     pick = require_point('pick', pick)
     place = require_point('place', place)
-    pick_dwell = require_range('pick_dwell', pick_dwell, 0.0, 10.0, unit='s')
-    place_dwell = require_range('place_dwell', place_dwell, 0.0, 10.0, unit='s')
+    pick_dwell = validate('pick_dwell', pick_dwell)
+    place_dwell = validate('place_dwell', place_dwell)
     latch_time = require_finite('latch_time', latch_time)
     start_time = require_finite('start_time', start_time)
     if not conveyor.moving:

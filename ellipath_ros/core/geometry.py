@@ -49,12 +49,12 @@ import math
 import numpy as np
 
 from .errors import DegenerateGeometryError, InvalidInputError, require_point, require_range
-from .settings import validate_fields
+from .settings import default_of, validate, validate_fields
 
 ARC_POLICIES = ('paper', 'apex_clearance', 'min_radius')
 # How the vertical lines meet the arc: a curvature-continuous transition, or the paper's step.
 JOINS = ('g2', 'paper')
-DEFAULT_JOIN_TOLERANCE = 5e-4
+DEFAULT_JOIN_TOLERANCE = default_of('join_tolerance')
 # -- G2 transition design (issue 14; scripts/join_study.py measures the choices) ----------
 # Largest value of the transition shape f(u) = u**2 (1 - u)**4 / 2 on [0, 1] (at u = 1/3).
 _BLEND_PEAK = 8.0 / 729.0
@@ -124,9 +124,9 @@ class ArcPolicy:
 
     """
 
-    kind: str = 'paper'
-    apex_clearance: float = 0.025
-    min_radius: float = 0.02
+    kind: str = default_of('arc_policy')
+    apex_clearance: float = default_of('apex_clearance')
+    min_radius: float = default_of('min_radius')
 
     def __post_init__(self):
         validate_fields(self)
@@ -616,7 +616,7 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     ``_BLEND_MAX_SPAN``. Spans are halved while the bent curve would slow its
     parameter speed to below ``_BLEND_MIN_SPEED_SHARE`` of the ellipse's.
     """
-    tolerance = require_range('join_tolerance', tolerance, 0.0, 0.01, low_open=True, unit='m')
+    tolerance = validate('join_tolerance', tolerance)
     # The horizontal offset bounds the distance: a span that is always short enough.
     safe = math.sqrt(tolerance / (_BLEND_PEAK * ellipse.l))
     t_apex = math.atan2(ellipse.k, ellipse.h)
@@ -921,7 +921,8 @@ def require_coordinates(name, point):
     return point
 
 
-def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=None,
+def plan_path(pick, place, pick_clearance=default_of('pick_clearance'),
+              place_clearance=default_of('place_clearance'), policy=None,
               join='paper', join_tolerance=DEFAULT_JOIN_TOLERANCE):
     """
     Build the composite path from pick P1 to place P2.
@@ -955,8 +956,8 @@ def plan_path(pick, place, pick_clearance=0.025, place_clearance=0.025, policy=N
     """
     pick = require_coordinates('pick', pick)
     place = require_coordinates('place', place)
-    c1 = require_range('pick_clearance', pick_clearance, 0.0, 1.0, unit='m')
-    c2 = require_range('place_clearance', place_clearance, 0.0, 1.0, unit='m')
+    c1 = validate('pick_clearance', pick_clearance)
+    c2 = validate('place_clearance', place_clearance)
     policy = policy or ArcPolicy()
     if join not in JOINS:
         raise InvalidInputError(f'join: expected one of {", ".join(JOINS)}, got {join!r}')

@@ -38,6 +38,7 @@ import math
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
+from ellipath_ros.core.settings import default_of
 from ellipath_ros.core.settings import validate_fields
 import numpy as np
 
@@ -88,12 +89,12 @@ class DeltaGeometry:
 
     """
 
-    base_radius: float = 0.200
-    effector_radius: float = 0.045
-    upper_arm: float = 0.350
-    forearm: float = 0.800
-    joint_min: float = -0.85
-    joint_max: float = 1.95
+    base_radius: float = default_of('base_radius')
+    effector_radius: float = default_of('effector_radius')
+    upper_arm: float = default_of('upper_arm')
+    forearm: float = default_of('forearm')
+    joint_min: float = default_of('joint_min')
+    joint_max: float = default_of('joint_max')
 
     def __post_init__(self):
         """Check every dimension and store them as floats."""
@@ -121,8 +122,8 @@ class JointLimits:
 
     """
 
-    max_velocity: float = 10.0
-    max_acceleration: float = 200.0
+    max_velocity: float = default_of('max_joint_velocity')
+    max_acceleration: float = default_of('max_joint_accel')
 
     def __post_init__(self):
         """Check that both limits are finite and positive, and store them as floats."""

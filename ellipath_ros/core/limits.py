@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InvalidInputError
-from .settings import validate_fields
+from .settings import default_of, validate_fields
 
 # The construction aims at these fractions of the limits; the rest absorbs what happens
 # between the steps it is built from (the final check samples the continuous motion).
@@ -62,10 +62,10 @@ class CartesianLimits:
 
     """
 
-    max_speed: float = 4.0
-    max_accel: float = 50.0
-    max_jerk: float = 5000.0
-    max_accel_jump: float = 25.0
+    max_speed: float = default_of('max_speed')
+    max_accel: float = default_of('max_accel')
+    max_jerk: float = default_of('max_jerk')
+    max_accel_jump: float = default_of('max_accel_jump')
 
     def __post_init__(self):
         # Practical ranges (core/settings.py): beyond them a motion lasts hours or the

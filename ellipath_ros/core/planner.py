@@ -30,7 +30,7 @@ import time
 
 import numpy as np
 
-from .errors import InvalidInputError, LimitError, require_point, require_range
+from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
     check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData,
@@ -41,7 +41,7 @@ from .kinematics import (
     JointLimits)
 from .limits import CartesianLimits
 from .motion import TimedMotion
-from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate_fields
+from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
 from .timing import time_motion
 from .workspace import SafeWorkspace
 
@@ -560,8 +560,8 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
     start = require_point('start', start)
     pick = require_point('pick', pick)
     place = require_point('place', place)
-    pick_dwell = require_range('pick_dwell', pick_dwell, 0.0, 10.0, unit='s')
-    place_dwell = require_range('place_dwell', place_dwell, 0.0, 10.0, unit='s')
+    pick_dwell = validate('pick_dwell', pick_dwell)
+    place_dwell = validate('place_dwell', place_dwell)
     transfer = plan_transfer(pick, place, config)
     legs = (transfer,)
     trajectory = transfer.joint_trajectory
