@@ -238,7 +238,7 @@ def path_markers(plan, frame_id, stamp, samples_per_leg=MARKER_SAMPLES_PER_LEG):
     header = Header(frame_id=frame_id, stamp=stamp)
     delete_all = Marker(header=header, ns=MARKER_NAMESPACE, action=Marker.DELETEALL)
     path = np.concatenate([
-        leg.path.evaluate(np.linspace(0.0, leg.path.length, samples_per_leg)).position
+        leg.path.at_lengths(np.linspace(0.0, leg.path.length, samples_per_leg)).position
         for leg in plan.legs])
     line = _marker(header, 0, Marker.LINE_STRIP, _LINE_WIDTH, _PATH_COLOUR)
     line.points = _points(path)

@@ -137,7 +137,7 @@ def corner_figures(path):
     s_t1 = path.segment_ends[1]
     speed_t1 = float(np.interp(s_t1, s, v))
     near = s_t1 + np.linspace(0.0, 0.03, 3001)
-    samples = path.evaluate(near)
+    samples = path.at_lengths(near)
     kappa = np.linalg.norm(samples.curvature, axis=1)
     kappa_s = float(np.linalg.norm(samples.curvature_rate[1]))
     share = timing.CEILING_SHARE * timing.JERK_MARGIN * LIMITS.max_jerk

@@ -87,7 +87,7 @@ def test_tcp_is_on_the_object_at_the_pick_instant(speed, degrees):
     assert np.linalg.norm(executed(plan, [t_pick])[0] - expected) <= ON_OBJECT
     # The plan itself is on the object to far better than that.
     assert np.linalg.norm(plan.intercept.pick_position - expected) <= 1e-9
-    planned = plan.legs[0].motion.evaluate(np.array([plan.legs[0].motion.duration]))[0][0]
+    planned = plan.legs[0].motion.state_at(np.array([plan.legs[0].motion.duration]))[0][0]
     assert np.linalg.norm(planned - expected) <= 1e-6
 
 
@@ -194,7 +194,7 @@ def test_place_onto_a_moving_tray_and_end_at_rest():
     plan = plan_belt_cycle(START, [-0.2, 0.0, -0.85], PLACE, CONFIG, conveyor,
                            place_dwell=0.03)
     motion = plan.legs[1].motion
-    position, velocity, _, _ = motion.evaluate(np.array([motion.duration]))
+    position, velocity, _, _ = motion.state_at(np.array([motion.duration]))
     assert np.linalg.norm(position[0] - PLACE) <= 1e-6
     assert np.linalg.norm(velocity[0] - belt(0.2, 0.0)) <= 1e-9
     trajectory = plan.joint_trajectory

@@ -90,7 +90,7 @@ def test_planned_peaks_pass_a_1mhz_check():
     leg = leg_of()
     motion = leg.motion
     t = np.arange(0.0, motion.duration, 1e-6)
-    _, velocity, acceleration, jerk = motion.evaluate(t)
+    _, velocity, acceleration, jerk = motion.state_at(t)
     found = {'peak_speed': np.linalg.norm(velocity, axis=1).max(),
              'peak_accel': np.linalg.norm(acceleration, axis=1).max(),
              'peak_jerk': np.linalg.norm(jerk, axis=1).max()}
@@ -169,7 +169,7 @@ def test_safety_net_slows_a_motion_down_just_enough():
     slowed = _within_limits(fast, tight, None)
     assert slowed.time_scale > 1.0
     t = np.arange(0.0, slowed.duration, 1e-6)
-    _, velocity, acceleration, jerk = slowed.evaluate(t)
+    _, velocity, acceleration, jerk = slowed.state_at(t)
     speed = np.linalg.norm(velocity, axis=1).max()
     accel = np.linalg.norm(acceleration, axis=1).max()
     jerk = np.linalg.norm(jerk, axis=1).max()

@@ -220,7 +220,7 @@ def test_radius_of_curvature_matches_the_composite_path_curvature():
     path = plan_path([0.0, 0.0, -0.8], [0.3, 0.0, -0.75])
     arc = path.arc
     s_arc = np.linspace(0.0, arc.length, 51)[1:-1]  # the joins belong to the lines
-    samples = path.evaluate(path.segment_ends[1] + s_arc)
+    samples = path.at_lengths(path.segment_ends[1] + s_arc)
     theta = arc.theta_from_t(arc.t_from_s(s_arc))
     np.testing.assert_allclose(np.linalg.norm(samples.curvature, axis=1),
                                1.0 / arc.radius_of_curvature(theta), rtol=1e-9)
@@ -231,16 +231,16 @@ def test_radius_of_curvature_matches_the_composite_path_curvature():
 def test_composite_path_in_any_azimuth(place):
     pick = np.array([0.0, 0.05, -0.8])
     path = plan_path(pick, place, 0.02, 0.04)
-    ends = path.evaluate(path.segment_ends)
+    ends = path.at_lengths(path.segment_ends)
     np.testing.assert_allclose(ends.position, [pick, pick + [0, 0, 0.02],
                                                np.add(place, [0, 0, 0.04]), place], atol=1e-12)
     # Tangent continuous (vertical) at T1 and T2, from both sides.
     joins = path.segment_ends[1:3]
     for side in (-1e-9, 1e-9):
-        tangent = path.evaluate(joins + side).tangent
+        tangent = path.at_lengths(joins + side).tangent
         np.testing.assert_allclose(np.abs(tangent), [[0, 0, 1], [0, 0, 1]], atol=1e-6)
     s = np.linspace(0.0, path.length, 20001)
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     # All points in the vertical plane through pick and place.
     normal = np.cross(path.direction, [0.0, 0.0, 1.0])
     assert np.abs((samples.position - pick) @ normal).max() < 1e-12
@@ -254,8 +254,8 @@ def test_third_derivative_matches_finite_differences_on_the_arc():
     path = plan_path([0.0, 0.0, -0.8], [0.3, 0.0, -0.75])
     s = path.segment_ends[1] + np.linspace(0.01, path.arc.length - 0.01, 2001)
     step = 1e-6
-    ahead, behind = path.evaluate(s + step), path.evaluate(s - step)
-    here = path.evaluate(s)
+    ahead, behind = path.at_lengths(s + step), path.at_lengths(s - step)
+    here = path.at_lengths(s)
     np.testing.assert_allclose((ahead.curvature - behind.curvature) / (2 * step),
                                here.curvature_rate, atol=1e-4 * np.abs(here.curvature_rate).max())
 
@@ -263,9 +263,9 @@ def test_third_derivative_matches_finite_differences_on_the_arc():
 def test_pure_vertical_moves_have_no_arc():
     up = plan_path([0.1, 0.1, -0.9], [0.1, 0.1, -0.8])
     assert up.arc is None and up.length == pytest.approx(0.1)
-    np.testing.assert_allclose(up.evaluate([0.05]).position, [[0.1, 0.1, -0.85]])
+    np.testing.assert_allclose(up.at_lengths([0.05]).position, [[0.1, 0.1, -0.85]])
     down = plan_path([0.1, 0.1, -0.8], [0.1, 0.1, -0.9])
-    samples = down.evaluate([0.0, 0.1])
+    samples = down.at_lengths([0.0, 0.1])
     np.testing.assert_allclose(samples.position, [[0.1, 0.1, -0.8], [0.1, 0.1, -0.9]])
     np.testing.assert_allclose(samples.tangent, [[0, 0, -1], [0, 0, -1]])
 
@@ -288,7 +288,7 @@ def test_bad_inputs_are_rejected_with_the_value():
 def test_tiny_horizontal_offsets_go_straight_to_the_place():
     path = plan_path([0.0, 0.0, -0.8], [5e-4, 0.0, -0.7])
     assert path.arc is None
-    ends = path.evaluate([0.0, path.length])
+    ends = path.at_lengths([0.0, path.length])
     np.testing.assert_allclose(ends.position, [[0.0, 0.0, -0.8], [5e-4, 0.0, -0.7]],
                                atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(ends.tangent, axis=1), 1.0)

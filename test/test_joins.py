@@ -67,7 +67,7 @@ def test_curvature_is_continuous_at_every_joint(name):
         assert abs(kappa_bent - kappa_plain) <= 1e-9 * kappa_plain
     # Through the composite path: the unit tangent and the curvature vector have no jump.
     for s_join in path.segment_ends[1:3]:
-        samples = path.evaluate(np.array([s_join - 1e-12, s_join + 1e-12]))
+        samples = path.at_lengths(np.array([s_join - 1e-12, s_join + 1e-12]))
         np.testing.assert_allclose(samples.tangent[0], samples.tangent[1], atol=1e-9)
         assert np.linalg.norm(samples.curvature[0] - samples.curvature[1]) <= 1e-9 * scale
 
@@ -86,11 +86,11 @@ def test_ellipse_curvature_matches_its_closed_form():
 def test_g2_path_stays_within_the_tolerance_of_the_papers(name, tolerance):
     g2, paper = path_of(name, 'g2', tolerance), path_of(name, 'paper')
     s = np.linspace(0.0, g2.length, 801)
-    points = g2.evaluate(s).position
+    points = g2.at_lengths(s).position
     # The paper's path as a dense polyline of exact points (lines and ellipse), 1 um apart;
     # each point is compared with the stretch within 4 mm of its arc length.
     spacing = 1e-6
-    reference = paper.evaluate(np.arange(0.0, paper.length + spacing, spacing)).position
+    reference = paper.at_lengths(np.arange(0.0, paper.length + spacing, spacing)).position
     window = int(0.004 / spacing)
     distance = np.empty(s.size)
     for index, (s_point, point) in enumerate(zip(s, points)):
@@ -108,13 +108,13 @@ def test_vertical_segments_are_exact(name):
     c1, _, c2 = path.segment_lengths
     assert (c1, c2) == (0.025, 0.02)
     s = np.linspace(0.0, c1, 51)
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     np.testing.assert_array_equal(samples.position[:, :2], np.tile(path.pick[:2], (51, 1)))
     np.testing.assert_allclose(samples.position[:, 2], path.pick[2] + s, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(samples.tangent, np.tile([0.0, 0.0, 1.0], (51, 1)))
     assert not samples.curvature.any()
     s = np.linspace(path.length - c2, path.length, 51)
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     np.testing.assert_array_equal(samples.position[:, :2], np.tile(path.place[:2], (51, 1)))
     np.testing.assert_allclose(samples.position[:, 2], path.place[2] + path.length - s,
                                rtol=0, atol=1e-15)
@@ -132,10 +132,10 @@ def test_bend_derivatives_match_finite_differences_of_positions(name):
     # dkappa/ds steps where the transitions meet the ellipse: keep the stencils off them.
     inner = ends[1] + bend.s_from_t(np.array([math.pi - bend.span_1, bend.span_2]))
     s = s[np.abs(s[:, None] - inner).min(axis=1) > 1e-4]
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
 
     def stencil(h):
-        return [path.evaluate(s + k * h).position for k in (-2, -1, 0, 1, 2)]
+        return [path.at_lengths(s + k * h).position for k in (-2, -1, 0, 1, 2)]
     at = stencil(1e-6)
     first = (at[3] - at[1]) / 2e-6
     at = stencil(1e-5)
@@ -160,7 +160,7 @@ def test_g2_motion_has_no_acceleration_step(name):
     assert motion.accel_jump_T1 == 0.0 and motion.accel_jump_T2 == 0.0
     duration = motion.duration
     t = np.linspace(0.0, duration, int(duration / 1e-5) + 1)
-    _, _, acceleration, jerk = motion.evaluate(t)
+    _, _, acceleration, jerk = motion.state_at(t)
     # Bounded jerk everywhere: no sample-to-sample acceleration change beyond jerk * dt.
     steps = np.linalg.norm(np.diff(acceleration, axis=0), axis=1) / (t[1] - t[0])
     assert steps.max() <= 1.01 * CartesianLimits().max_jerk
@@ -183,9 +183,9 @@ def test_jerk_matches_finite_differences_of_positions(name):
     low, high = motion.path_state(t - 2 * h)[0], motion.path_state(t + 2 * h)[0]
     t = t[~((low[:, None] <= inner) & (inner <= high[:, None])).any(axis=1)]
     assert t.size > 20
-    at = [motion.evaluate(t + k * h)[0] for k in (-2, -1, 0, 1, 2)]
+    at = [motion.state_at(t + k * h)[0] for k in (-2, -1, 0, 1, 2)]
     third = (at[4] - 2 * at[3] + 2 * at[1] - at[0]) / (2 * h ** 3)
-    jerk = motion.evaluate(t)[3]
+    jerk = motion.state_at(t)[3]
     np.testing.assert_allclose(third, jerk, atol=5e-3 * CartesianLimits().max_jerk)
 
 

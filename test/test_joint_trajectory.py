@@ -46,7 +46,7 @@ class QuinticLine:
         self.end = np.asarray(end, dtype=float)
         self.duration = float(duration)
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """Position, velocity, acceleration and jerk at times t (N,)."""
         tau = np.asarray(t, dtype=float)[:, np.newaxis] / self.duration
         span, period = self.end - self.start, self.duration
@@ -81,7 +81,7 @@ class SCurveArc:
             a.append(a[-1] + j * quarter)
         self.s0, self.v0, self.a0 = np.array(s), np.array(v), np.array(a)
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """Position, velocity, acceleration and jerk at times t (N,)."""
         t = np.asarray(t, dtype=float)
         k = np.clip(np.searchsorted(self.bounds, t, side='right') - 1, 0, 3)
@@ -109,7 +109,7 @@ def tcp_error(traj, motion, samples):
     """Largest TCP deviation of JTC's interpolation on a uniform grid of samples."""
     times = np.linspace(0.0, motion.duration, samples)
     q = quintic_interpolate(traj, times)[0]
-    return np.linalg.norm(forward_kinematics(q, GEOMETRY) - motion.evaluate(times)[0],
+    return np.linalg.norm(forward_kinematics(q, GEOMETRY) - motion.state_at(times)[0],
                           axis=1).max()
 
 
@@ -126,10 +126,10 @@ def test_motions_used_here_are_consistent():
     for motion in (LINE, ARC):
         times = np.linspace(0.01, 0.29, 15)
         step = 1e-6
-        numeric = (motion.evaluate(times + step)[0] - motion.evaluate(times - step)[0]) / (
+        numeric = (motion.state_at(times + step)[0] - motion.state_at(times - step)[0]) / (
             2.0 * step)
-        np.testing.assert_allclose(numeric, motion.evaluate(times)[1], atol=1e-6)
-        end = motion.evaluate(np.array([motion.duration]))
+        np.testing.assert_allclose(numeric, motion.state_at(times)[1], atol=1e-6)
+        end = motion.state_at(np.array([motion.duration]))
         np.testing.assert_allclose(end[0][0], motion.end, atol=1e-12)
         np.testing.assert_allclose(end[1][0], 0.0, atol=1e-12)
 
@@ -173,7 +173,7 @@ def test_sampling_has_a_fixed_period_and_ends_at_the_duration():
     assert 0.0 < times[-1] - times[-2] <= 0.007
     assert times.size == 44  # 0 .. 0.301: 43 regular samples below 0.3, plus 0.3
     np.testing.assert_allclose(traj.positions,
-                               inverse_kinematics(ARC.evaluate(times)[0], GEOMETRY), atol=0.0)
+                               inverse_kinematics(ARC.state_at(times)[0], GEOMETRY), atol=0.0)
     validate_jtc(traj, expect_names=NAMES)
     exact = sample_joint_trajectory(LINE, GEOMETRY, 0.01)
     assert exact.time_from_start.size == 31  # 0.3 / 0.01 lands on the end: no twin sample
@@ -189,7 +189,7 @@ def test_minimal_knots_stay_within_tolerance(motion, tolerance):
     assert times[0] == 0.0 and times[-1] == motion.duration
     # Knots carry the motion's exact joint states.
     np.testing.assert_allclose(traj.positions,
-                               inverse_kinematics(motion.evaluate(times)[0], GEOMETRY), atol=0.0)
+                               inverse_kinematics(motion.state_at(times)[0], GEOMETRY), atol=0.0)
     # Independent check on a grid ~300 times finer than the search's own.
     verified = tcp_error(traj, motion, 60001)
     assert verified <= tolerance

@@ -51,7 +51,7 @@ class Helix:
     centre = np.array([0.05, -0.03, -0.8])
     radius, omega, height, nu = 0.2, 9.0, 0.1, 13.0
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """Position, velocity and acceleration at times t (N,)."""
         t = np.asarray(t, dtype=float)
         w, n = self.omega, self.nu
@@ -233,12 +233,12 @@ def test_rates_match_finite_differences_of_inverse_kinematics():
     motion = Helix()
     times = np.linspace(0.0, 0.7, 41)
     step = 1e-5
-    position, velocity, acceleration = motion.evaluate(times)
+    position, velocity, acceleration = motion.state_at(times)
     q = inverse_kinematics(position, GEOMETRY)
     qdot = joint_velocities(position, q, velocity, GEOMETRY)
     qddot = joint_accelerations(position, q, velocity, acceleration, qdot, GEOMETRY)
-    before = inverse_kinematics(motion.evaluate(times - step)[0], GEOMETRY)
-    after = inverse_kinematics(motion.evaluate(times + step)[0], GEOMETRY)
+    before = inverse_kinematics(motion.state_at(times - step)[0], GEOMETRY)
+    after = inverse_kinematics(motion.state_at(times + step)[0], GEOMETRY)
     qdot_fd = (after - before) / (2.0 * step)
     qddot_fd = (after - 2.0 * q + before) / step ** 2
     assert np.abs(qdot).max() > 1.0 and np.abs(qddot).max() > 10.0  # a real test
@@ -247,7 +247,7 @@ def test_rates_match_finite_differences_of_inverse_kinematics():
 
 
 def test_rates_of_a_single_sample_keep_its_shape():
-    position, velocity, acceleration = (array[0] for array in Helix().evaluate([0.1]))
+    position, velocity, acceleration = (array[0] for array in Helix().state_at([0.1]))
     q = inverse_kinematics(position, GEOMETRY)
     qdot = joint_velocities(position, q, velocity, GEOMETRY)
     assert qdot.shape == (3,)

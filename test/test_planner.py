@@ -88,7 +88,7 @@ def test_interpolated_tcp_motion_stays_near_the_plan_and_the_limits():
     config = PlannerConfig()
     leg = plan_transfer(PICK, PLACE, config)
     t, q, _, _ = dense(leg.joint_trajectory)
-    planned = leg.motion.evaluate(t)[0]
+    planned = leg.motion.state_at(t)[0]
     deviation = np.linalg.norm(forward_kinematics(q, config.geometry) - planned, axis=1)
     assert deviation.max() <= config.knot_tolerance
     assert leg.max_interpolation_error <= config.knot_tolerance

@@ -58,13 +58,13 @@ def samples_of(name, profile):
     """Return (t, s, s', s'', s''', position, velocity, acceleration, jerk), fine samples."""
     motion = motion_of(name, profile)
     t = np.linspace(0.0, motion.duration, int(math.ceil(motion.duration / PERIOD)) + 1)
-    return (t,) + motion.path_state(t) + motion.evaluate(t)
+    return (t,) + motion.path_state(t) + motion.state_at(t)
 
 
 def one_sided(motion, t_join, epsilon=1e-7):
     """Return the Cartesian state just before and just after ``t_join``."""
     t = np.array([t_join - epsilon, t_join + epsilon])
-    return motion.evaluate(np.clip(t, 0.0, motion.duration))
+    return motion.state_at(np.clip(t, 0.0, motion.duration))
 
 
 @pytest.mark.parametrize('name,profile', CASES)
@@ -186,8 +186,8 @@ def test_derivatives_match_finite_differences(name, profile):
     motion = motion_of(name, profile)
     t = np.linspace(0.01, motion.duration - 0.01, 400)
     h = 1e-6
-    position, velocity, acceleration, _ = motion.evaluate(t)
-    ahead, behind = motion.evaluate(t + h), motion.evaluate(t - h)
+    position, velocity, acceleration, _ = motion.state_at(t)
+    ahead, behind = motion.state_at(t + h), motion.state_at(t - h)
     np.testing.assert_allclose((ahead[0] - behind[0]) / (2 * h), velocity, atol=1e-5)
     np.testing.assert_allclose((ahead[1] - behind[1]) / (2 * h), acceleration, atol=2e-2)
     s, v, a, _ = motion.path_state(t)
@@ -219,8 +219,8 @@ def test_scaled_slows_down_uniformly():
     np.testing.assert_allclose(slow.segment_durations, factor * motion.segment_durations)
     assert slow.accel_jump_T1 == pytest.approx(motion.accel_jump_T1 / factor ** 2)
     t = np.linspace(0.0, motion.duration, 97)
-    fast_state = motion.evaluate(t)
-    slow_state = slow.evaluate(factor * t)
+    fast_state = motion.state_at(t)
+    slow_state = slow.state_at(factor * t)
     for power, (fast, slow_value) in enumerate(zip(fast_state, slow_state)):
         np.testing.assert_allclose(slow_value, fast / factor ** power, atol=1e-9)
     assert slow.scaled(2.0).duration == pytest.approx(2.0 * slow.duration)
@@ -297,7 +297,7 @@ def test_invalid_arguments():
         time_motion(path, speed_cap=lambda s: np.ones(3))
     motion = motion_of('paper', 'time_optimal')
     with pytest.raises(InvalidInputError, match='^t: expected'):
-        motion.evaluate([motion.duration + 1e-3])
+        motion.state_at([motion.duration + 1e-3])
     with pytest.raises(InvalidInputError, match='^t: expected'):
         motion.path_state([math.nan])
     with pytest.raises(InvalidInputError, match='^factor: expected'):

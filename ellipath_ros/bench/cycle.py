@@ -102,7 +102,7 @@ def topp_bound(path, limits, join_cap=True):
 
     class _Path(toppra.interpolator.AbstractGeometricPath):
         def __call__(self, positions, order=0):
-            samples = path.evaluate(np.atleast_1d(positions))
+            samples = path.at_lengths(np.atleast_1d(positions))
             return (samples.position, samples.tangent, samples.curvature)[order]
 
         @property
@@ -122,7 +122,7 @@ def topp_bound(path, limits, join_cap=True):
             return 3
 
         def compute_constraint_params(self, _, grid, *args, **kwargs):
-            samples = path.evaluate(grid)
+            samples = path.at_lengths(grid)
             # Acceleration in the path's plane: (along u, vertical) = p' s'' + p'' s'**2.
             plane = np.stack((path.direction, np.array([0.0, 0.0, 1.0])))
             angles = 2.0 * math.pi * np.arange(BOUND_FACETS) / BOUND_FACETS

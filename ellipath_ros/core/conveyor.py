@@ -291,7 +291,7 @@ class SuperposedMotion:
 
     Position = ``anchor`` + relative(t - delay) - relative(0) + frame displacement(t).
     Before ``delay`` and after its end the relative motion rests. It has the
-    interface the planner's point machinery needs (``duration``, ``evaluate``,
+    interface the planner's point machinery needs (``duration``, ``state_at``,
     ``jerk_steps``) and the one ``LegPlan.summary`` reads (``metrics``,
     ``profile``, ``n_nodes``).
 
@@ -329,7 +329,7 @@ class SuperposedMotion:
         """Return the relative motion's node count (curvature profile), else None."""
         return self.relative.n_nodes if self.relative is not None else None
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """Return base-frame position, velocity, acceleration and jerk at ``t``, (N, 3) each."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         displacement, velocity, acceleration, jerk = self.frame.state(t)
@@ -338,8 +338,8 @@ class SuperposedMotion:
             return position, velocity, acceleration, jerk
         local = t - self.delay
         moving = (local > 0.0) & (local < self.relative.duration)
-        r, rv, ra, rj = self.relative.evaluate(np.clip(local, 0.0, self.relative.duration))
-        origin = self.relative.evaluate(np.zeros(1))[0][0]
+        r, rv, ra, rj = self.relative.state_at(np.clip(local, 0.0, self.relative.duration))
+        origin = self.relative.state_at(np.zeros(1))[0][0]
         mask = moving[:, np.newaxis]
         return (position + r - origin, velocity + np.where(mask, rv, 0.0),
                 acceleration + np.where(mask, ra, 0.0), jerk + np.where(mask, rj, 0.0))
@@ -358,7 +358,7 @@ class SuperposedMotion:
     def metrics(self, sample_period=1e-4):
         """Return duration and the planned peaks (speed, acceleration, jerk) in the base frame."""
         count = max(int(math.ceil(self.duration / sample_period)) + 1, 3)
-        _, velocity, acceleration, jerk = self.evaluate(np.linspace(0.0, self.duration, count))
+        _, velocity, acceleration, jerk = self.state_at(np.linspace(0.0, self.duration, count))
         segments = (self.relative.segment_durations.tolist() if self.relative is not None
                     else [0.0, 0.0, 0.0])
         return {'duration': float(self.duration), 'segment_durations': segments,
@@ -770,7 +770,7 @@ def _piece(name, relative, frame, anchor, delay, duration, config, bounds):
     _check_executed_workspace(trajectory, config, name)
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, peaks)}
     path = relative.path if relative is not None else None
-    knot_positions = motion.evaluate(trajectory.time_from_start)[0]
+    knot_positions = motion.state_at(trajectory.time_from_start)[0]
     leg = LegPlan(path, motion, trajectory, knot_positions, error, executed[
         'joint_peak_velocity'], executed['joint_peak_accel'], 1.0, executed)
     return leg, trajectory, motion
@@ -809,7 +809,7 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
         _, exit_trajectory, exit_motion = _piece('exit', relative, frame, end, 0.0, duration,
                                                  config, bounds)
         trajectory = _concatenate(trajectory, exit_trajectory)
-        end = exit_motion.evaluate(np.array([duration]))[0][0]
+        end = exit_motion.state_at(np.array([duration]))[0][0]
     else:
         trajectory = _hold(trajectory, place_dwell)
     validate_jtc(trajectory, config.joint_names)

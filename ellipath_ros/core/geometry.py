@@ -845,7 +845,7 @@ class PickPlacePath:
             return self.pick if self.pick[2] >= self.place[2] else self.place
         return self.to_base(self.arc.apex)
 
-    def evaluate(self, s):
+    def at_lengths(self, s):
         """
         Sample the path at arc lengths ``s`` (N,) [m], clipped to [0, length].
 

@@ -75,7 +75,7 @@ class Motion(Protocol):
 
     duration: float  # s, > 0
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """
         Return TCP position, velocity, acceleration and jerk at times ``t``.
 
@@ -434,17 +434,17 @@ def _motion_duration(motion):
                          low_open=True, unit='s')
 
 
-def _evaluate(motion, times):
-    """Call ``motion.evaluate`` and check what comes back: four finite (N, 3) arrays."""
-    result = motion.evaluate(times)
+def _checked_state_at(motion, times):
+    """Call ``motion.state_at`` and check what comes back: four finite (N, 3) arrays."""
+    result = motion.state_at(times)
     try:
         arrays = [np.asarray(item, dtype=float) for item in result]
     except (TypeError, ValueError):
-        raise InvalidInputError('motion.evaluate: expected 4 arrays of shape (N, 3), got '
+        raise InvalidInputError('motion.state_at: expected 4 arrays of shape (N, 3), got '
                                 f'{type(result).__name__}') from None
     shapes = [array.shape for array in arrays]
     if shapes != [(times.size, 3)] * 4:
-        raise InvalidInputError(f'motion.evaluate: expected 4 arrays of shape '
+        raise InvalidInputError(f'motion.state_at: expected 4 arrays of shape '
                                 f'({times.size}, 3), got shapes {shapes}')
     for name, array in zip(('position', 'velocity', 'acceleration'), arrays):
         finite = np.isfinite(array).all(axis=1)
@@ -457,7 +457,7 @@ def _evaluate(motion, times):
 
 def _joint_states(motion, geometry, times):
     """Joint positions, velocities and accelerations of the motion at ``times`` (N,)."""
-    points, velocities, accelerations, _ = _evaluate(motion, times)
+    points, velocities, accelerations, _ = _checked_state_at(motion, times)
     try:
         q, qdot, qddot = joint_motion(points, velocities, accelerations, geometry,
                                       name='TCP position')
@@ -567,7 +567,7 @@ class _PlannedPositions:
     def __init__(self, motion, duration):
         count = max(2, math.ceil(duration / _PLANNED_TABLE_STEP)) + 1
         self.times = np.linspace(0.0, duration, count)
-        position, velocity, acceleration, _ = _evaluate(motion, self.times)
+        position, velocity, acceleration, _ = _checked_state_at(motion, self.times)
         index = np.arange(count - 1)
         self.coefficients = interpolation_coefficients(
             np.diff(self.times), position[index], position[index + 1], velocity[index],
@@ -644,7 +644,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
         planned = _PlannedPositions(motion, duration)
     else:
         def planned(times):
-            return _evaluate(motion, times)[0]
+            return _checked_state_at(motion, times)[0]
 
     def errors_of(knots, start, end):
         return _segment_errors(planned, geometry, knots, start, end, fractions)

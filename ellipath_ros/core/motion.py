@@ -208,7 +208,7 @@ class TimedMotion:
         s, v, a, j = self.law.state(np.clip(t, 0.0, self.duration) / factor)
         return s, v / factor, a / factor ** 2, j / factor ** 3
 
-    def evaluate(self, t):
+    def state_at(self, t):
         """
         Return the TCP motion at times ``t``.
 
@@ -307,8 +307,8 @@ class TimedMotion:
         times = np.unique(np.concatenate(candidates)) if candidates else np.zeros(0)
         times = times[(times > 0.0) & (times < self.duration)]
         epsilon = 1e-9 * self.duration
-        before = self.evaluate(np.maximum(times - epsilon, 0.0))[3]
-        after = self.evaluate(np.minimum(times + epsilon, self.duration))[3]
+        before = self.state_at(np.maximum(times - epsilon, 0.0))[3]
+        after = self.state_at(np.minimum(times + epsilon, self.duration))[3]
         return times, np.linalg.norm(after - before, axis=1)
 
     def scaled(self, factor):
@@ -345,7 +345,7 @@ class TimedMotion:
 
 def _cartesian(path, s, v, a, j):
     """Return position, velocity, acceleration and jerk (N, 3) from the path state."""
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     tangent, curvature, rate = samples.tangent, samples.curvature, samples.curvature_rate
     return (samples.position, v[:, None] * tangent,
             a[:, None] * tangent + (v * v)[:, None] * curvature,

@@ -290,7 +290,7 @@ def _speed_cap(path, config):
     """
     count = max(int(math.ceil(path.length / REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     points = np.vstack((samples.position, path.apex))
     q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
     dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
@@ -306,7 +306,7 @@ def _joint_peaks(motion, config):
     """Return peak |q_dot| and |q_ddot| of the motion on a dense time grid."""
     count = max(int(math.ceil(motion.duration / JOINT_CHECK_PERIOD)) + 1, 3)
     t = np.linspace(0.0, motion.duration, count)
-    position, velocity, acceleration, _ = motion.evaluate(t)
+    position, velocity, acceleration, _ = motion.state_at(t)
     _, qdot, qddot = joint_motion(position, velocity, acceleration, config.geometry,
                                   name='motion point')
     return float(np.abs(qdot).max()), float(np.abs(qddot).max())
@@ -319,7 +319,7 @@ def _interpolation_error(motion, trajectory, config, per_segment=8):
     t = (times[:-1, None] + np.diff(times)[:, None] * fractions).ravel()
     q, _, _ = quintic_interpolate(trajectory, t)
     tcp = forward_kinematics(q, config.geometry, name='interpolated q')
-    return float(np.linalg.norm(tcp - motion.evaluate(t)[0], axis=1).max())
+    return float(np.linalg.norm(tcp - motion.state_at(t)[0], axis=1).max())
 
 
 def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None,
@@ -400,7 +400,7 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
                 'slow-downs')
         slowdown *= max(excess * (1.0 + SLOWDOWN_MARGIN), 1.0 + SLOWDOWN_MARGIN)
     _check_executed_workspace(trajectory, config, leg)
-    knot_positions = motion.evaluate(trajectory.time_from_start)[0]
+    knot_positions = motion.state_at(trajectory.time_from_start)[0]
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown, executed)

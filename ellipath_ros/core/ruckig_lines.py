@@ -119,7 +119,7 @@ def _constant_limits(path, s_from, s_to, speed, limits):
     bend = _bend_length(path)
     if bend is not None and s_from < bend < s_to:
         s = np.sort(np.append(s, bend))
-    samples = path.evaluate(s)
+    samples = path.at_lengths(s)
     kappa = np.linalg.norm(samples.curvature, axis=1)
     normal = samples.curvature / np.maximum(kappa, 1e-300)[:, None]
     kappa = float(kappa.max())

@@ -248,7 +248,7 @@ def _figure7(plan, config, out_dir):
     """Draw the joint angles of the three actuators over time (IK of the motion)."""
     motion = plan.motion
     t = np.linspace(0.0, motion.duration, _TIME_SAMPLES)
-    q = inverse_kinematics(motion.evaluate(t)[0], config.geometry, name='motion point')
+    q = inverse_kinematics(motion.state_at(t)[0], config.geometry, name='motion point')
     knots = plan.joint_trajectory
     figure, axes = _new_figure(size=(8.0, 4.5))
     axis = axes[0, 0]
@@ -293,7 +293,7 @@ def _figure_profiles(plans, config, out_dir):
     for plan, color in zip(plans, ('tab:blue', 'tab:orange')):
         motion = plan.motion
         t = np.linspace(0.0, motion.duration, _TIME_SAMPLES)
-        norms = [np.linalg.norm(value, axis=1) for value in motion.evaluate(t)[1:]]
+        norms = [np.linalg.norm(value, axis=1) for value in motion.state_at(t)[1:]]
         for row, value in enumerate(norms):
             axes[row, 0].plot(t, value, color=color,
                               label=f'{motion.profile}: {motion.duration:.3f} s')
