@@ -44,7 +44,7 @@ import numpy as np
 from .errors import InvalidInputError, LimitError, require_range
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _pieces_law, _Sequence, TimedMotion
-from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _vertical_motion
+from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
 
 # Where a ramp may end, in shares of the arc's parameter range, after the nodes.
 _RAMP_FRACTIONS = np.array([1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.2])
@@ -195,7 +195,7 @@ def _curvature_state(arc, rate, theta):
 def _curvature_motion(path, limits, r, speed_cap):
     """Build the paper's profile (module docstring): the rule on the arc, Ruckig elsewhere."""
     if path.arc is None:
-        return _vertical_motion(path, limits, speed_cap, 'curvature')
+        return _straight_motion(path, limits, speed_cap, 'curvature')
     arc = path.arc
     nodes = curvature_nodes(arc, r)
     # The tightest point (theta = 0 mod pi) is sampled exactly.

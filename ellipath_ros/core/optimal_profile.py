@@ -33,7 +33,7 @@ from .errors import LimitError
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
 from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
-    _constant_limits, _line_rows, _reach_speed, _ruckig_rows, _vertical_motion)
+    _constant_limits, _line_rows, _reach_speed, _ruckig_rows, _straight_motion)
 
 # Time step of the path-space scans [s]: the short one where the curvature (1/m) is above
 # _SCAN_KAPPA, where the limits change fast along the path.
@@ -808,7 +808,7 @@ def _bracket_root(function, low, high, tolerance):
 def _optimal_motion(path, limits, speed_cap):
     """Build the time-optimal profile (see :func:`time_motion`)."""
     if path.arc is None:
-        return _vertical_motion(path, limits, speed_cap, 'time_optimal')
+        return _straight_motion(path, limits, speed_cap, 'time_optimal')
     c1, arc_length, c2 = (float(value) for value in path.segment_lengths)
     planner = _ArcPlanner(path, limits, speed_cap)
     v_in = planner.end_speed(c1, True, speed_cap)

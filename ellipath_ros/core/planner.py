@@ -281,7 +281,7 @@ class CyclePlan:
     end_position: np.ndarray
 
 
-def _speed_cap(path, config):
+def _check_reach_and_speed_cap(path, config):
     """
     Check reachability along the path and return the joint-velocity speed cap.
 
@@ -362,7 +362,7 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
         config.pick_clearance if pick_clearance is None else pick_clearance,
         config.place_clearance if place_clearance is None else place_clearance,
         config.arc, config.join, config.join_tolerance)
-    cap = _speed_cap(path, config)
+    cap = _check_reach_and_speed_cap(path, config)
     timed = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
                         speed_cap=cap)
     if timed.duration > MAX_LEG_DURATION:

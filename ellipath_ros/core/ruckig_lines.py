@@ -92,12 +92,12 @@ def _line_rows(start, target, limits, speed_cap, s_from, s_to):
                         limits.max_jerk * _JERK_MARGIN)
 
 
-def _vertical_motion(path, limits, speed_cap, profile):
-    """Time a pure vertical move: one straight segment from rest to rest."""
+def _straight_motion(path, limits, speed_cap, profile):
+    """Time a move without an arc (under 1 mm sideways): one straight segment, rest to rest."""
     rows = _line_rows((0.0, 0.0, 0.0), (path.length, 0.0, 0.0), limits, speed_cap,
                       0.0, path.length)
     if rows is None:
-        raise LimitError('vertical move: expected Ruckig to find a rest-to-rest motion, '
+        raise LimitError('straight move: expected Ruckig to find a rest-to-rest motion, '
                          f'got none for {path.length:.6g} m')
     pieces = _PieceList()
     pieces.extend(rows)
