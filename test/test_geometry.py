@@ -221,7 +221,7 @@ def test_radius_of_curvature_matches_the_composite_path_curvature():
     arc = path.arc
     s_arc = np.linspace(0.0, arc.length, 51)[1:-1]  # the joins belong to the lines
     samples = path.at_lengths(path.segment_ends[1] + s_arc)
-    theta = arc.theta_from_t(arc.t_from_s(s_arc))
+    theta = arc.t_from_s(s_arc) + arc.theta_T2
     np.testing.assert_allclose(np.linalg.norm(samples.curvature, axis=1),
                                1.0 / arc.radius_of_curvature(theta), rtol=1e-9)
     assert arc.end_radius == pytest.approx(arc.radius_of_curvature(arc.theta_T1), rel=1e-12)

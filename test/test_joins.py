@@ -77,7 +77,7 @@ def test_ellipse_curvature_matches_its_closed_form():
     arc = path_of('paper', 'paper').arc
     t = np.linspace(math.pi, 0.0, 101)
     kappa = arc.curvature_and_rate(t)[0]
-    np.testing.assert_allclose(kappa, 1.0 / arc.radius_of_curvature(arc.theta_from_t(t)),
+    np.testing.assert_allclose(kappa, 1.0 / arc.radius_of_curvature(t + arc.theta_T2),
                                rtol=1e-12)
 
 

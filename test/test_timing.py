@@ -175,7 +175,7 @@ def test_curvature_profile_speed_follows_the_radius_of_curvature():
     t = np.linspace(motion.segment_durations[0] + 0.05,
                     motion.duration - motion.segment_durations[2] - 0.05, 50)
     s, v, _, _ = motion.path_state(t)
-    theta = arc.theta_from_t(arc.t_from_s(s - motion.path.segment_ends[1]))
+    theta = arc.t_from_s(s - motion.path.segment_ends[1]) + arc.theta_T2
     ratio = v / arc.radius_of_curvature(theta) ** (4.0 / 3.0)
     np.testing.assert_allclose(ratio, ratio[0], rtol=1e-6)
 

@@ -389,10 +389,6 @@ class EllipticArc(_ParametricArc):
         """Parameter t of the tightest point (the major-axis end on the arc) [rad]."""
         return float(self.t_from_theta(math.pi * math.ceil(self.theta_T2 / math.pi)))
 
-    def theta_from_t(self, t):
-        """Return the paper's parameter theta = t + theta_T2 [rad]."""
-        return np.asarray(t, dtype=float) + self.theta_T2
-
     def t_from_theta(self, theta):
         """Return t = theta - theta_T2 [rad]."""
         return np.asarray(theta, dtype=float) - self.theta_T2
@@ -598,10 +594,6 @@ class BlendedArc(_ParametricArc):
     def end_radius(self):
         """Radius of curvature at T1 and T2: infinite (the curvature is 0 there)."""
         return math.inf
-
-    def max_deviation(self):
-        """Bound on the horizontal distance from the ellipse [m]: l span**2 max f."""
-        return self.ellipse.l * max(self.span_1, self.span_2) ** 2 * _BLEND_PEAK
 
 
 def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
