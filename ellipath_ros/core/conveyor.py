@@ -63,6 +63,7 @@ from .errors import (
 from .geometry import plan_path
 from .joint_trajectory import check_joint_limits, validate_jtc
 from .limits import CartesianLimits
+from .motion import TimedMotion
 from .planner import (
     _check_executed_workspace, _concatenate, _excess_factor, _hold, _joint_points,
     _rest_point, CyclePlan, executed_bounds, EXECUTED_KEYS, LegPlan, plan_cycle,
@@ -310,7 +311,7 @@ class SuperposedMotion:
 
     """
 
-    relative: object
+    relative: TimedMotion | None
     frame: FrameRamp
     anchor: np.ndarray
     duration: float
@@ -403,7 +404,7 @@ class _Leg:
     straight line) changes the frame first, then moves: ``delay``.
     """
 
-    relative: object
+    relative: TimedMotion
     shortest: float
     arc_start: float
     arc_end: float
@@ -673,7 +674,7 @@ class BeltCyclePlan(CyclePlan):
 
     """
 
-    intercept: object = None
+    intercept: Intercept | None = None
     start_time: float = 0.0
 
 

@@ -42,6 +42,7 @@ import math
 import numpy as np
 
 from .errors import InvalidInputError, LimitError, require_range
+from .geometry import EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _pieces_law, _Sequence, TimedMotion
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
@@ -67,7 +68,7 @@ class _CurvatureArcLaw:
     by theta), and t(theta) = (a b / K) * integral of sigma**-3 from theta to theta_start.
     """
 
-    arc: object
+    arc: EllipticArc
     rate: float  # K [rad/(m s)]
     s_offset: float  # path length at theta_T1 [m]
     theta_start: float

@@ -796,7 +796,7 @@ class PickPlacePath:
     arc: EllipticArc | None
     direction: np.ndarray
     segment_lengths: np.ndarray
-    bend: object = None
+    bend: EllipticArc | BlendedArc | None = None
     join: str = 'paper'
 
     def __post_init__(self):

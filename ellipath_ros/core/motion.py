@@ -133,7 +133,7 @@ class TimedMotion:
         Step of the acceleration vector at T1 and T2 [m/s**2].
     n_nodes : int or None
         Nodes of the paper's node list (curvature profile), else None.
-    law : object
+    law : _JerkPieces or _Sequence
         The timing law s(t) it was built from (internal; read it through
         :meth:`path_state`).
     time_scale : float
@@ -150,13 +150,13 @@ class TimedMotion:
     segment_durations: np.ndarray
     accel_jump_T1: float
     accel_jump_T2: float
-    n_nodes: object
-    law: object = field(repr=False)
+    n_nodes: int | None
+    law: _JerkPieces | _Sequence = field(repr=False)
     time_scale: float = 1.0
-    node_period: object = None
+    node_period: float | None = None
     # Peaks (speed, acceleration, jerk) on the default samples, once sampled_norms has run: the
     # final limit check and metrics() share one sample set; scaled() scales them.
-    _peaks: object = field(default=None, init=False, repr=False)
+    _peaks: tuple | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         if not isinstance(self.path, PickPlacePath):

@@ -155,7 +155,7 @@ class PairRequest:
     place: np.ndarray
     received: float
     topic: str
-    latch_time: object = None
+    latch_time: float | None = None
 
 
 @dataclass(frozen=True)
