@@ -21,7 +21,7 @@ from ellipath_ros.core.joint_trajectory import executed_peaks, minimal_knots
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.limits import CartesianLimits
-from ellipath_ros.core.planner import EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
+from ellipath_ros.core.planner import _EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import _within_limits, time_motion
 import numpy as np
 
@@ -53,7 +53,7 @@ def dense_check(trajectory, geometry, step=1e-6, spread=10):
             'joint_peak_velocity': np.abs(qdot).max(), 'joint_peak_accel': np.abs(qddot).max()}
 
 
-def assert_within_limits(found, config, jerk_share=EXECUTED_JERK_SHARE):
+def assert_within_limits(found, config, jerk_share=_EXECUTED_JERK_SHARE):
     limits, joints = config.limits, config.joint_limits
     assert found['peak_speed'] <= limits.max_speed
     assert found['peak_accel'] <= limits.max_accel
@@ -133,7 +133,7 @@ def test_points_are_added_at_the_jerk_steps_where_knots_alone_break_the_jerk():
                              config.knot_tolerance)
     bare = executed_peaks(knots, config.geometry)
     # Precondition: the fewest knots within the tolerance break the executed jerk bound.
-    assert bare['peak_jerk'] > EXECUTED_JERK_SHARE * config.limits.max_jerk
+    assert bare['peak_jerk'] > _EXECUTED_JERK_SHARE * config.limits.max_jerk
     times = leg.joint_trajectory.time_from_start
     assert times.size > knots.time_from_start.size
     # Large jerk steps of the motion got points of their own.
@@ -156,7 +156,7 @@ def test_the_papers_join_has_an_unbounded_executed_jerk_which_is_reported():
     leg = leg_of('paper')
     found = dense_check(leg.joint_trajectory, config.geometry)
     # The plan steps its acceleration at T1/T2: the quintic turns that into a large jerk.
-    assert found['peak_jerk'] > EXECUTED_JERK_SHARE * config.limits.max_jerk
+    assert found['peak_jerk'] > _EXECUTED_JERK_SHARE * config.limits.max_jerk
     assert_reported_not_below(leg.executed, found)
     assert_within_limits(found, config, jerk_share=np.inf)
 

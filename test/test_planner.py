@@ -142,7 +142,7 @@ def test_limits_outside_their_practical_range_are_rejected(name, value):
 
 def test_a_leg_that_would_last_too_long_is_refused(monkeypatch):
     from ellipath_ros.core import planner
-    monkeypatch.setattr(planner, 'MAX_LEG_DURATION', 0.05)
+    monkeypatch.setattr(planner, '_MAX_LEG_DURATION', 0.05)
     with pytest.raises(LimitError, match='leg duration: expected at most 0.05 s'):
         plan_transfer(PICK, PLACE)
 

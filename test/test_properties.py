@@ -43,12 +43,12 @@ from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import reachable
-from ellipath_ros.core.planner import EXECUTED_WORKSPACE_TOLERANCE
+from ellipath_ros.core.planner import _EXECUTED_WORKSPACE_TOLERANCE
+from ellipath_ros.core.planner import _QUINTIC_CHECK_SAMPLES
+from ellipath_ros.core.planner import _WORKSPACE_CHECK_PERIOD
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import plan_transfer
 from ellipath_ros.core.planner import PlannerConfig
-from ellipath_ros.core.planner import QUINTIC_CHECK_SAMPLES
-from ellipath_ros.core.planner import WORKSPACE_CHECK_PERIOD
 from ellipath_ros.core.settings import CORE_NAMES
 from ellipath_ros.core.settings import default_values
 from ellipath_ros.core.workspace import SafeWorkspace
@@ -316,15 +316,15 @@ def assert_executable(trajectory, config):
     """Assert that JTC takes ``trajectory``, within every limit as executed; return the TCP."""
     validate_jtc(trajectory, expect_names=config.joint_names)
     check_joint_limits(trajectory, config.geometry, config.joint_limits,
-                       samples_per_segment=QUINTIC_CHECK_SAMPLES)
+                       samples_per_segment=_QUINTIC_CHECK_SAMPLES)
     times = trajectory.time_from_start
     t = np.linspace(times[0], times[-1], max(int((times[-1] - times[0]) / 2e-4), 2))
     tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry)
-    # The planner checks the executed motion every WORKSPACE_CHECK_PERIOD, allowing
-    # EXECUTED_WORKSPACE_TOLERANCE; in between, the TCP (whose executed speed the planner
+    # The planner checks the executed motion every _WORKSPACE_CHECK_PERIOD, allowing
+    # _EXECUTED_WORKSPACE_TOLERANCE; in between, the TCP (whose executed speed the planner
     # keeps within max_speed) moves up to half a period's travel further: the documented bound.
-    margin = (EXECUTED_WORKSPACE_TOLERANCE
-              + config.limits.max_speed * WORKSPACE_CHECK_PERIOD / 2.0)
+    margin = (_EXECUTED_WORKSPACE_TOLERANCE
+              + config.limits.max_speed * _WORKSPACE_CHECK_PERIOD / 2.0)
     assert config.workspace.contains(tcp, tolerance=margin).all()
     return tcp
 

@@ -24,7 +24,7 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import quintic_positions
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import reachable
-from ellipath_ros.core.planner import EXECUTED_WORKSPACE_TOLERANCE
+from ellipath_ros.core.planner import _EXECUTED_WORKSPACE_TOLERANCE
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import PlannerConfig
 from ellipath_ros.core.settings import default_values
@@ -177,7 +177,7 @@ def test_an_arc_whose_apex_pierces_the_top_is_rejected_at_the_first_point_above(
     arc = {'arc_policy': 'apex_clearance', 'apex_clearance': 0.03}
     loose = plan_cycle(pick, pick, place, _config(workspace_z_max=-0.4, **arc))
     t, tcp = _executed_tcp(loose.joint_trajectory, _config().geometry)
-    above = tcp[:, 2] > -0.55 + EXECUTED_WORKSPACE_TOLERANCE
+    above = tcp[:, 2] > -0.55 + _EXECUTED_WORKSPACE_TOLERANCE
     assert above.any(), 'the test case must rise above the default top'
     first = t[np.argmax(above)]
     with pytest.raises(WorkspaceError) as caught:
@@ -204,7 +204,7 @@ def test_a_keep_out_box_under_the_arc_is_cleared_and_one_in_its_way_is_named():
     # A wall 1 mm below the lowest point the arc passes over it: planned.
     plan_cycle(pick, pick, place, _wall_config(lowest - 0.001))
     # 2 mm above: the first point of the executed motion inside the wall is named.
-    inside = over_wall & (tcp[:, 2] < lowest + 0.002 - EXECUTED_WORKSPACE_TOLERANCE)
+    inside = over_wall & (tcp[:, 2] < lowest + 0.002 - _EXECUTED_WORKSPACE_TOLERANCE)
     with pytest.raises(WorkspaceError, match=r'^executed TCP of the transfer leg\[\d+\] at t = '
                                              r'.* inside keep_out_boxes\[0\]') as caught:
         plan_cycle(pick, pick, place, _wall_config(lowest + 0.002))
@@ -223,7 +223,7 @@ def test_a_cycle_on_the_boundary_is_planned_and_its_motion_stays_inside():
     config = _config()
     plan = plan_cycle(HOME, [0.4, 0.0, -1.0], [0.0, -0.4, -1.0], config)
     _, tcp = _executed_tcp(plan.joint_trajectory, config.geometry)
-    assert config.workspace.contains(tcp, tolerance=EXECUTED_WORKSPACE_TOLERANCE).all()
+    assert config.workspace.contains(tcp, tolerance=_EXECUTED_WORKSPACE_TOLERANCE).all()
 
 
 def test_quintic_positions_are_those_of_quintic_interpolate():

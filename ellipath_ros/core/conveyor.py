@@ -66,8 +66,8 @@ from .limits import CartesianLimits
 from .motion import TimedMotion
 from .planner import (
     _check_executed_workspace, _concatenate, _excess_factor, _hold, _joint_points,
-    _rest_point, CyclePlan, executed_bounds, EXECUTED_KEYS, LegPlan, plan_cycle,
-    PlannerConfig, QUINTIC_CHECK_SAMPLES, SAME_POINT)
+    _QUINTIC_CHECK_SAMPLES, _rest_point, _SAME_POINT, CyclePlan, executed_bounds,
+    EXECUTED_KEYS, LegPlan, plan_cycle, PlannerConfig)
 from .settings import default_of, validate
 from .timing import time_motion
 
@@ -727,7 +727,7 @@ def plan_belt_cycle(start, pick, place, config=None, conveyor=None, *, pick_dwel
         return BeltCyclePlan(static.legs, static.joint_trajectory, static.metrics,
                              static.end_position, None, start_time)
     config.workspace.check(start, name='start')
-    if np.linalg.norm(pick - start) <= SAME_POINT:
+    if np.linalg.norm(pick - start) <= _SAME_POINT:
         raise InvalidInputError(
             'start: expected the robot away from a moving object, got it on the pick')
     limits = relative_limits(config.limits, conveyor)
@@ -767,7 +767,7 @@ def _piece(name, relative, frame, anchor, delay, duration, config, bounds):
         raise _ExecutedExcess(f'executed {name}: expected the limits, got {broken}',
                               max(_excess_factor(peaks / bounds), 1.0 + 1e-3))
     check_joint_limits(trajectory, config.geometry, config.joint_limits,
-                       samples_per_segment=QUINTIC_CHECK_SAMPLES)
+                       samples_per_segment=_QUINTIC_CHECK_SAMPLES)
     _check_executed_workspace(trajectory, config, name)
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, peaks)}
     path = relative.path if relative is not None else None

@@ -46,43 +46,43 @@ from .timing import time_motion
 from .workspace import SafeWorkspace
 
 # Path samples for the reachability check and the joint-speed cap: at most this far apart.
-REACH_CHECK_SPACING = 0.002
+_REACH_CHECK_SPACING = 0.002
 # The joint-speed cap is interpolated between path samples: keep a margin for that.
-JOINT_CAP_MARGIN = 0.97
+_JOINT_CAP_MARGIN = 0.97
 # Time step of the dense joint-limit check of the planned motion.
-JOINT_CHECK_PERIOD = 0.0005
+_JOINT_CHECK_PERIOD = 0.0005
 # Interior points per knot segment at which JTC's quintic is checked against the limits.
-QUINTIC_CHECK_SAMPLES = 16
+_QUINTIC_CHECK_SAMPLES = 16
 # Share of the joint limits the motion itself may use (JTC's quintic may overshoot it).
-JOINT_LIMIT_SHARE = 0.99
+_JOINT_LIMIT_SHARE = 0.99
 # Extra slow-down steps when the interpolated trajectory still breaks a joint limit.
-SLOWDOWN_ATTEMPTS = 4
-SLOWDOWN_STEP = 1.02
+_SLOWDOWN_ATTEMPTS = 4
+_SLOWDOWN_STEP = 1.02
 # What JTC executes keeps the TCP speed and acceleration limits and the jerk within this
 # multiple of its limit (a quintic through points cannot follow the jerk exactly); the checks
-# aim EXECUTED_AIM below each, for what a check finer than theirs could still find.
-EXECUTED_JERK_SHARE = 1.10
-EXECUTED_AIM = 0.999
+# aim _EXECUTED_AIM below each, for what a check finer than theirs could still find.
+_EXECUTED_JERK_SHARE = 1.10
+_EXECUTED_AIM = 0.999
 # Jerk steps of at least this share of max_jerk get a point when their segment breaks a limit
-# (not closer than KNOT_MIN_GAP [s] to another point), for at most KNOT_ROUNDS rounds.
-JERK_STEP_SHARE = 0.1
-KNOT_MIN_GAP = 1e-4
-KNOT_ROUNDS = 8
+# (not closer than _KNOT_MIN_GAP [s] to another point), for at most _KNOT_ROUNDS rounds.
+_JERK_STEP_SHARE = 0.1
+_KNOT_MIN_GAP = 1e-4
+_KNOT_ROUNDS = 8
 # A leg slowed down for the executed limits is slowed this much beyond the measured excess.
-SLOWDOWN_MARGIN = 2e-3
+_SLOWDOWN_MARGIN = 2e-3
 # A leg slower than this is refused before it is sampled (limits far too low, or the paper's
 # profile on a needle-thin arc): no pick-and-place cycle takes a minute.
-MAX_LEG_DURATION = 60.0
+_MAX_LEG_DURATION = 60.0
 # Start and pick closer than this: the robot is already at the pick, no approach leg.
-SAME_POINT = 1e-6
+_SAME_POINT = 1e-6
 # Time step at which the executed motion (JTC's quintic through the points, through forward
 # kinematics) is checked against the safe workspace: at 4 m/s the TCP moves 0.4 mm per step,
 # so between two samples a bound is crossed by at most max_speed * step / 2 more.
-WORKSPACE_CHECK_PERIOD = 1e-4
+_WORKSPACE_CHECK_PERIOD = 1e-4
 # The executed motion may cross a workspace bound by this much at a sample [m]: JTC's
 # interpolation wobbles by micrometres about a vertical segment on the boundary (a pick at
 # exactly the workspace radius); this is the default knot_tolerance, the check's resolution.
-EXECUTED_WORKSPACE_TOLERANCE = 1e-4
+_EXECUTED_WORKSPACE_TOLERANCE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -286,15 +286,15 @@ def _check_reach_and_speed_cap(path, config):
     Check reachability along the path and return the joint-velocity speed cap.
 
     The cap is ds/dt <= max_joint_velocity / max_i |dq_i/ds|, sampled at most
-    ``REACH_CHECK_SPACING`` apart and interpolated (with a margin) in between.
+    ``_REACH_CHECK_SPACING`` apart and interpolated (with a margin) in between.
     """
-    count = max(int(math.ceil(path.length / REACH_CHECK_SPACING)) + 1, 3)
+    count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
     samples = path.at_lengths(s)
     points = np.vstack((samples.position, path.apex))
     q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
     dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
-    caps = JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
+    caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
         np.abs(dq_ds).max(axis=1), 1e-12)
 
     def cap(query):
@@ -304,7 +304,7 @@ def _check_reach_and_speed_cap(path, config):
 
 def _joint_peaks(motion, config):
     """Return peak |q_dot| and |q_ddot| of the motion on a dense time grid."""
-    count = max(int(math.ceil(motion.duration / JOINT_CHECK_PERIOD)) + 1, 3)
+    count = max(int(math.ceil(motion.duration / _JOINT_CHECK_PERIOD)) + 1, 3)
     t = np.linspace(0.0, motion.duration, count)
     position, velocity, acceleration, _ = motion.state_at(t)
     _, qdot, qddot = joint_motion(position, velocity, acceleration, config.geometry,
@@ -365,9 +365,9 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     cap = _check_reach_and_speed_cap(path, config)
     timed = time_motion(path, config.limits, profile=config.profile, r=config.curvature_r,
                         speed_cap=cap)
-    if timed.duration > MAX_LEG_DURATION:
+    if timed.duration > _MAX_LEG_DURATION:
         raise LimitError(
-            f'leg duration: expected at most {MAX_LEG_DURATION:g} s, got {timed.duration:.4g} s '
+            f'leg duration: expected at most {_MAX_LEG_DURATION:g} s, got {timed.duration:.4g} s '
             f'({config.profile} profile on a {path.length:.4g} m path); raise the limits or '
             f'choose another arc policy or profile')
     peak_velocity, peak_accel = _joint_peaks(timed, config)
@@ -377,28 +377,28 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     # executes (its quintic between the points) is then checked against every limit; points
     # are added where it breaks one (_joint_points), and what they cannot mend slows the leg
     # down by the measured excess (a few times at most).
-    slowdown = max(1.0, peak_velocity / (JOINT_LIMIT_SHARE * limits.max_velocity),
-                   math.sqrt(peak_accel / (JOINT_LIMIT_SHARE * limits.max_acceleration)))
+    slowdown = max(1.0, peak_velocity / (_JOINT_LIMIT_SHARE * limits.max_velocity),
+                   math.sqrt(peak_accel / (_JOINT_LIMIT_SHARE * limits.max_acceleration)))
     bounds = executed_bounds(config)
-    for attempt in range(SLOWDOWN_ATTEMPTS):
+    for attempt in range(_SLOWDOWN_ATTEMPTS):
         motion = timed.scaled(slowdown) if slowdown > 1.0 else timed
         trajectory, error, table = _joint_points(motion, config, bounds)
         excess = _excess_factor(table.max(axis=0) / bounds)
         try:
             check_joint_limits(trajectory, config.geometry, limits,
-                               samples_per_segment=QUINTIC_CHECK_SAMPLES)
+                               samples_per_segment=_QUINTIC_CHECK_SAMPLES)
         except LimitError:
-            if attempt == SLOWDOWN_ATTEMPTS - 1:
+            if attempt == _SLOWDOWN_ATTEMPTS - 1:
                 raise
-            excess = max(excess, SLOWDOWN_STEP)
+            excess = max(excess, _SLOWDOWN_STEP)
         if excess <= 1.0:
             break
-        if attempt == SLOWDOWN_ATTEMPTS - 1:
+        if attempt == _SLOWDOWN_ATTEMPTS - 1:
             raise LimitError(
                 f'executed motion: expected JTC interpolation within the limits, got '
-                f'{_describe_excess(table.max(axis=0), bounds)} after {SLOWDOWN_ATTEMPTS} '
+                f'{_describe_excess(table.max(axis=0), bounds)} after {_SLOWDOWN_ATTEMPTS} '
                 'slow-downs')
-        slowdown *= max(excess * (1.0 + SLOWDOWN_MARGIN), 1.0 + SLOWDOWN_MARGIN)
+        slowdown *= max(excess * (1.0 + _SLOWDOWN_MARGIN), 1.0 + _SLOWDOWN_MARGIN)
     _check_executed_workspace(trajectory, config, leg)
     knot_positions = motion.state_at(trajectory.time_from_start)[0]
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
@@ -409,21 +409,21 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
 def _check_executed_workspace(trajectory, config, leg):
     """Raise WorkspaceError if JTC's interpolation of ``trajectory`` leaves the workspace."""
     times = trajectory.time_from_start
-    count = max(int(math.ceil((times[-1] - times[0]) / WORKSPACE_CHECK_PERIOD)) + 1, 2)
+    count = max(int(math.ceil((times[-1] - times[0]) / _WORKSPACE_CHECK_PERIOD)) + 1, 2)
     t = np.linspace(times[0], times[-1], count)
     tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry,
                              name='interpolated q')
     config.workspace.check(tcp, name=f'executed TCP of the {leg} leg', times=t,
-                           tolerance=EXECUTED_WORKSPACE_TOLERANCE)
+                           tolerance=_EXECUTED_WORKSPACE_TOLERANCE)
 
 
 def _spaced(times, added):
-    """Return ``times`` with those of ``added`` at least ``KNOT_MIN_GAP`` from every other."""
+    """Return ``times`` with those of ``added`` at least ``_KNOT_MIN_GAP`` from every other."""
     merged = list(times)
     for candidate in sorted(added):
         position = np.searchsorted(merged, candidate)
         neighbours = merged[max(position - 1, 0):position + 1]
-        if all(abs(candidate - other) >= KNOT_MIN_GAP for other in neighbours):
+        if all(abs(candidate - other) >= _KNOT_MIN_GAP for other in neighbours):
             merged.insert(position, candidate)
     return np.array(merged)
 
@@ -450,8 +450,8 @@ def executed_bounds(config):
     the points come closer: that jerk is reported, not bounded.
     """
     limits, joints = config.limits, config.joint_limits
-    jerk = EXECUTED_JERK_SHARE * limits.max_jerk if config.join == 'g2' else math.inf
-    return EXECUTED_AIM * np.array([limits.max_speed, limits.max_accel, jerk,
+    jerk = _EXECUTED_JERK_SHARE * limits.max_jerk if config.join == 'g2' else math.inf
+    return _EXECUTED_AIM * np.array([limits.max_speed, limits.max_accel, jerk,
                                     joints.max_velocity, joints.max_acceleration])
 
 
@@ -475,8 +475,8 @@ def _joint_points(motion, config, bounds):
     speed, acceleration and jerk can still exceed the planned ones: a quintic cannot follow
     a step of the jerk, and reaches up to 1.7 times the true jerk across one. So every
     segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` gets points at
-    the jerk steps inside it of at least ``JERK_STEP_SHARE`` of the limit, or at its middle
-    if it has none, for up to ``KNOT_ROUNDS`` rounds and while a round lowers an exceeded
+    the jerk steps inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle
+    if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded
     peak. Samples output is checked, not changed. The table (S, 5) has the peaks of each
     segment in ``EXECUTED_KEYS`` order.
     """
@@ -489,10 +489,10 @@ def _joint_points(motion, config, bounds):
     trajectory, error = minimal_knots(motion, geometry, config.joint_names,
                                       config.knot_tolerance)
     step_times, step_sizes = motion.jerk_steps()
-    steps = step_times[step_sizes >= JERK_STEP_SHARE * config.limits.max_jerk]
+    steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
-    for _ in range(KNOT_ROUNDS):
+    for _ in range(_KNOT_ROUNDS):
         broken = np.flatnonzero((table > bounds).any(axis=1))
         if broken.size == 0:
             break
@@ -565,7 +565,7 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
     transfer = plan_transfer(pick, place, config)
     legs = (transfer,)
     trajectory = transfer.joint_trajectory
-    if np.linalg.norm(pick - start) > SAME_POINT:
+    if np.linalg.norm(pick - start) > _SAME_POINT:
         # The robot outside the safe workspace (moved there by hand) is not moved by a plan.
         config.workspace.check(start, name='start')
         # Approach: lift out of wherever the robot is (as from a place), descend onto the pick.
