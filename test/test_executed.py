@@ -15,15 +15,19 @@
 """What JTC executes: limits on its quintic through FK, honest peaks, the fallbacks."""
 
 import functools
+import os
+import sys
 
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import executed_peaks, minimal_knots
-from ellipath_ros.core.joint_trajectory import quintic_interpolate
-from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import _EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import _within_limits, time_motion
 import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                'scripts'))
+import executed_limits  # noqa: E402, I100 (scripts/ is not a package)
 
 PICK = np.array([0.0, 0.0, -0.8])
 PLACE = np.array([0.3, 0.0, -0.75])
@@ -35,22 +39,11 @@ def dense_check(trajectory, geometry, step=1e-6, spread=10):
     """
     Return the executed peaks by an independent check at 1/step Hz, as a dict.
 
-    JTC's quintic (``quintic_interpolate``) through FK at every ``step``; TCP
-    derivatives by central differences ``spread`` samples wide (narrower ones
-    drown the jerk in rounding), joint ones from the polynomials.
+    The check of ``scripts/executed_limits.py`` (JTC's quintic through FK at every ``step``,
+    central differences ``spread`` samples wide), keyed by the planner's peak names.
     """
-    times = trajectory.time_from_start
-    t = np.arange(times[0], times[-1] + step / 2, step)
-    q, qdot, qddot = quintic_interpolate(trajectory, t)
-    p = forward_kinematics(q, geometry)
-    k, h = spread, spread * step
-    velocity = (p[2 * k:] - p[:-2 * k]) / (2 * h)
-    acceleration = (p[2 * k:] - 2 * p[k:-k] + p[:-2 * k]) / h ** 2
-    jerk = (p[4 * k:] - 2 * p[3 * k:-k] + 2 * p[k:-3 * k] - p[:-4 * k]) / (2 * h ** 3)
-    return {'peak_speed': np.linalg.norm(velocity, axis=1).max(),
-            'peak_accel': np.linalg.norm(acceleration, axis=1).max(),
-            'peak_jerk': np.linalg.norm(jerk, axis=1).max(),
-            'joint_peak_velocity': np.abs(qdot).max(), 'joint_peak_accel': np.abs(qddot).max()}
+    return dict(zip(executed_limits.KEYS,
+                    executed_limits.dense_check(trajectory, geometry, step, spread)))
 
 
 def assert_within_limits(found, config, jerk_share=_EXECUTED_JERK_SHARE):
