@@ -42,7 +42,7 @@ import math
 import numpy as np
 
 from .errors import InvalidInputError, LimitError, require_range
-from .geometry import EllipticArc
+from .geometry import EllipticArc, radius_of_curvature_derivatives
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _pieces_law, _Sequence, TimedMotion
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
@@ -86,16 +86,12 @@ class _CurvatureArcLaw:
     def duration(self):
         return float(self._times[-1])
 
-    def _sigma(self, theta):
-        a, b = self.arc.a, self.arc.b
-        return np.sqrt(a * a * np.sin(theta) ** 2 + b * b * np.cos(theta) ** 2)
-
     def _elapsed(self, theta_from, theta_to):
         """Return the time from theta_from down to theta_to (elementwise), >= 0."""
         half = 0.5 * (theta_to - theta_from)
         nodes = (0.5 * (theta_to + theta_from))[..., None] + half[..., None] * _GL_NODES
         ab = self.arc.a * self.arc.b
-        return np.abs(half) * ab / self.rate * (self._sigma(nodes) ** -3 @ _GL_WEIGHTS)
+        return np.abs(half) * ab / self.rate * (self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS)
 
     def theta(self, t):
         """Return theta at times ``t`` (N,) from the start of this law (Newton on the table)."""
@@ -108,17 +104,14 @@ class _CurvatureArcLaw:
         for _ in range(4):
             residual = t_0 + self._elapsed(theta_0, theta) - t
             # dt/dtheta = -a b / (K sigma**3)
-            theta = np.clip(theta + residual * self.rate * self._sigma(theta) ** 3 / ab,
+            theta = np.clip(theta + residual * self.rate * self.arc.sigma(theta)[0] ** 3 / ab,
                             theta_1, theta_0)
         return theta
 
     def state(self, t):
         theta = self.theta(t)
-        a, b, rate = self.arc.a, self.arc.b, self.rate
-        ab = a * b
-        sigma = self._sigma(theta)
-        sigma_1 = (a * a - b * b) * np.sin(2.0 * theta) / (2.0 * sigma)
-        sigma_2 = ((a * a - b * b) * np.cos(2.0 * theta) - sigma_1 ** 2) / sigma
+        rate, ab = self.rate, self.arc.a * self.arc.b
+        sigma, sigma_1, sigma_2 = self.arc.sigma(theta)
         s = self.s_offset + self.arc.s_from_t(self.arc.t_from_theta(theta))
         speed = rate * sigma ** 4 / ab
         accel = -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2
@@ -149,12 +142,10 @@ def curvature_nodes(arc, r=0.77):
         raise InvalidInputError(
             f'r: expected a value giving at most {_MAX_NODES} nodes (r >= '
             f'{law.duration / _MAX_NODES:.3g} rad/m for this arc), got {r!r} rad/m')
-    a, b = arc.a, arc.b
     theta = arc.theta_T1
     nodes = [theta]
     while theta > arc.theta_T2:
-        theta -= r * (a * a * math.sin(theta) ** 2 + b * b * math.cos(theta) ** 2) ** 1.5 / (
-            a * b)
+        theta -= r * float(arc.radius_of_curvature(theta))
         nodes.append(theta)
     nodes[-1] = arc.theta_T2
     return np.array(nodes)
@@ -162,15 +153,7 @@ def curvature_nodes(arc, r=0.77):
 
 def _arc_cartesian_peaks(arc, theta):
     """Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), each (N,)."""
-    a, b = arc.a, arc.b
-    ab = a * b
-    sin, cos = np.sin(theta), np.cos(theta)
-    sigma = np.sqrt(a * a * sin ** 2 + b * b * cos ** 2)
-    sigma_1 = (a * a - b * b) * np.sin(2.0 * theta) / (2.0 * sigma)
-    sigma_2 = ((a * a - b * b) * np.cos(2.0 * theta) - sigma_1 ** 2) / sigma
-    rho = sigma ** 3 / ab
-    rho_1 = 3.0 * sigma ** 2 * sigma_1 / ab
-    rho_2 = (6.0 * sigma * sigma_1 ** 2 + 3.0 * sigma ** 2 * sigma_2) / ab
+    rho, rho_1, rho_2 = radius_of_curvature_derivatives(arc.a, arc.b, theta)
     # theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1.
     w1, w2, w3 = -rho, rho * rho_1, -rho * (rho_1 ** 2 + rho * rho_2)
     p = arc.point(arc.t_from_theta(theta))
@@ -185,10 +168,8 @@ def _arc_cartesian_peaks(arc, theta):
 
 def _curvature_state(arc, rate, theta):
     """Return (s from T1 [m], s', s'') of the rule at a scalar ``theta``."""
-    a, b = arc.a, arc.b
-    ab = a * b
-    sigma = math.sqrt(a * a * math.sin(theta) ** 2 + b * b * math.cos(theta) ** 2)
-    sigma_1 = (a * a - b * b) * math.sin(2.0 * theta) / (2.0 * sigma)
+    ab = arc.a * arc.b
+    sigma, sigma_1, _ = (float(value) for value in arc.sigma(theta))
     return (float(arc.s_from_t(arc.t_from_theta(theta))), rate * sigma ** 4 / ab,
             -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2)
 

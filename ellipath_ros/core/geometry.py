@@ -205,6 +205,49 @@ def elliptic_e(m):
     return math.pi / (2.0 * a) * (1.0 - c_squared_sum)
 
 
+def ellipse_sigma(a, b, theta):
+    """
+    Return sigma = |dP/dtheta| and its first two derivatives by theta, each shaped as theta.
+
+    The ellipse calculus of the paper's parameter theta (eq. 29) in one place:
+    sigma = sqrt(a**2 sin**2 theta + b**2 cos**2 theta) (the speed of the
+    ellipse in theta), sigma' = (a**2 - b**2) sin theta cos theta / sigma,
+    sigma'' = ((a**2 - b**2) cos 2 theta - sigma'**2) / sigma [m/rad, m/rad**2,
+    m/rad**3]; the radius of curvature is sigma**3 / (a b) (eq. 34).
+    """
+    theta = np.asarray(theta, dtype=float)
+    spread = a * a - b * b
+    sin_theta, cos_theta = np.sin(theta), np.cos(theta)
+    sigma = np.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma_1 = spread * sin_theta * cos_theta / sigma
+    sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
+    return sigma, sigma_1, sigma_2
+
+
+def radius_of_curvature_derivatives(a, b, theta):
+    """
+    Return rho(theta) of the paper's eq. (34) and its first two derivatives.
+
+    Parameters
+    ----------
+    a, b : float
+        Semi-axes of the ellipse [m], > 0.
+    theta : numpy.ndarray
+        Ellipse parameter (eq. 29) [rad], any shape.
+
+    Returns
+    -------
+    rho, rho_1, rho_2 : numpy.ndarray
+        rho [m], d rho / d theta [m/rad] and d2 rho / d theta2 [m/rad**2],
+        shape of ``theta``: rho = sigma**3 / (a b) (:func:`ellipse_sigma`).
+
+    """
+    sigma, sigma_1, sigma_2 = ellipse_sigma(a, b, theta)
+    ab = a * b
+    return (sigma ** 3 / ab, 3.0 * sigma ** 2 * sigma_1 / ab,
+            (6.0 * sigma * sigma_1 ** 2 + 3.0 * sigma ** 2 * sigma_2) / ab)
+
+
 class _ParametricArc:
     """
     Arc-length bookkeeping of a plane curve P(t), t from pi (T1) to 0 (T2).
@@ -395,27 +438,11 @@ class EllipticArc(_ParametricArc):
 
     def radius_of_curvature(self, theta):
         """Return rho(theta) = sigma**3 / (a b), the paper's eq. (34), shape of ``theta`` [m]."""
-        theta = np.asarray(theta, dtype=float)
-        a, b = self.a, self.b
-        return (a * a * np.sin(theta) ** 2 + b * b * np.cos(theta) ** 2) ** 1.5 / (a * b)
+        return ellipse_sigma(self.a, self.b, theta)[0] ** 3 / (self.a * self.b)
 
     def sigma(self, theta):
-        """
-        Return sigma = |dP/dtheta| and its first two derivatives by theta, each shaped as theta.
-
-        In the paper's parameter, sigma = sqrt(a**2 sin**2 theta + b**2 cos**2
-        theta) (the speed of the ellipse in theta, equal to |dP/dt|), so
-        sigma' = (a**2 - b**2) sin theta cos theta / sigma and
-        sigma'' = ((a**2 - b**2) cos 2 theta - sigma'**2) / sigma [m/rad, m/rad**2,
-        m/rad**3]; the radius of curvature is sigma**3 / (a b).
-        """
-        theta = np.asarray(theta, dtype=float)
-        spread = self.a * self.a - self.b * self.b
-        sin_theta, cos_theta = np.sin(theta), np.cos(theta)
-        sigma = np.sqrt(self.a * self.a * sin_theta ** 2 + self.b * self.b * cos_theta ** 2)
-        sigma_1 = spread * sin_theta * cos_theta / sigma
-        sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
-        return sigma, sigma_1, sigma_2
+        """Return sigma and its first two derivatives by theta (see :func:`ellipse_sigma`)."""
+        return ellipse_sigma(self.a, self.b, theta)
 
     # -- lengths -------------------------------------------------------------------
     @property

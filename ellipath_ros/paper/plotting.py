@@ -31,7 +31,8 @@ import os
 from ellipath_ros.core.curvature_profile import curvature_nodes
 from ellipath_ros.core.errors import DegenerateGeometryError
 from ellipath_ros.core.geometry import (
-    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi)
+    arc_for_policy, ArcPolicy, conjugate_k_from_phi, EllipticArc, paper_phi,
+    radius_of_curvature_derivatives)
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 from ellipath_ros.paper.comparison import figure8_paths
@@ -76,35 +77,6 @@ def _save(figure, out_dir, name):
     path = os.path.join(out_dir, name)
     figure.savefig(path, dpi=_DPI)
     return path
-
-
-def radius_of_curvature_derivatives(a, b, theta):
-    """
-    Return rho(theta) of the paper's eq. (34) and its first two derivatives.
-
-    Parameters
-    ----------
-    a, b : float
-        Semi-axes of the ellipse [m], > 0.
-    theta : numpy.ndarray
-        Ellipse parameter (eq. 29) [rad], any shape.
-
-    Returns
-    -------
-    rho, rho_1, rho_2 : numpy.ndarray
-        rho [m], d rho / d theta [m/rad] and d2 rho / d theta2 [m/rad**2],
-        shape of ``theta``. With Q = a**2 sin**2 + b**2 cos**2, rho = Q**1.5 / (a b).
-
-    """
-    theta = np.asarray(theta, dtype=float)
-    q = a * a * np.sin(theta) ** 2 + b * b * np.cos(theta) ** 2
-    q_1 = (a * a - b * b) * np.sin(2.0 * theta)
-    q_2 = 2.0 * (a * a - b * b) * np.cos(2.0 * theta)
-    root = np.sqrt(q)
-    rho = q * root / (a * b)
-    rho_1 = 1.5 * root * q_1 / (a * b)
-    rho_2 = (0.75 * q_1 * q_1 / root + 1.5 * root * q_2) / (a * b)
-    return rho, rho_1, rho_2
 
 
 def _figure2(arc, policy, out_dir):
