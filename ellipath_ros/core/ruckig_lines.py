@@ -15,7 +15,7 @@
 """
 Ruckig on one degree of freedom: time-optimal pieces along a straight or gently curved stretch.
 
-Ruckig's own error text is kept where it refuses a state (see :func:`_ruckig_rows`).
+Ruckig's own error text is kept where it refuses a state (see :func:`_ruckig_solution`).
 """
 
 import math
@@ -33,7 +33,17 @@ def _ruckig_rows(start, target, speed, accel, jerk):
     Return the time-optimal 1-DoF pieces from ``start`` to ``target`` (s, s', s''), or None.
 
     None when Ruckig finds nothing or the motion is not monotone (it would
-    overshoot and come back: the distance is too short for the states).
+    overshoot and come back: the distance is too short for the states);
+    :func:`_ruckig_solution` says why.
+    """
+    return _ruckig_solution(start, target, speed, accel, jerk)[0]
+
+
+def _ruckig_solution(start, target, speed, accel, jerk):
+    """
+    Return (rows, None) as :func:`_ruckig_rows` does, or (None, why) with Ruckig's own text.
+
+    Each row is (duration, s, s', s'', s''') of one constant-jerk piece.
     """
     data = InputParameter(1)
     data.current_position, data.current_velocity, data.current_acceleration = (
@@ -43,11 +53,12 @@ def _ruckig_rows(start, target, speed, accel, jerk):
     data.max_velocity, data.max_acceleration, data.max_jerk = [speed], [accel], [jerk]
     trajectory = Trajectory(1)
     try:
-        if Ruckig(1).calculate(data, trajectory) != Result.Working:
-            return None
-    except RuckigError:
+        result = Ruckig(1).calculate(data, trajectory)
+    except RuckigError as error:
         # Ruckig refuses states beyond its limits (e.g. a target acceleration above them).
-        return None
+        return None, f'Ruckig refused the states: {str(error).strip()}'
+    if result != Result.Working:
+        return None, f'Ruckig returned {result.name}'
     profile = trajectory.profiles[0][0]
     rows = []
     brake = profile.brake
@@ -65,8 +76,9 @@ def _ruckig_rows(start, target, speed, accel, jerk):
         if j != 0.0 and 0.0 < -a / j < duration:
             ends.append(v - 0.5 * a * a / j)
         if min(ends) < -1e-9:
-            return None
-    return rows
+            return None, (f"Ruckig's motion runs backwards (speed down to {min(ends):.3g} "
+                          'm/s): the distance is too short for the end states')
+    return rows, None
 
 
 def _reach_speed(distance, accel, jerk):
@@ -84,21 +96,26 @@ def _reach_speed(distance, accel, jerk):
 
 def _line_rows(start, target, limits, speed_cap, s_from, s_to):
     """Return Ruckig pieces along a straight segment [s_from, s_to] (None if none fit)."""
+    return _line_solution(start, target, limits, speed_cap, s_from, s_to)[0]
+
+
+def _line_solution(start, target, limits, speed_cap, s_from, s_to):
+    """Return (rows, None) as :func:`_line_rows` does, or (None, why) with Ruckig's text."""
     speed = limits.max_speed * _SPEED_MARGIN
     if speed_cap is not None and s_to > s_from:
         speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
             speed_cap, np.linspace(s_from, s_to, _LIMIT_SAMPLES)))))
-    return _ruckig_rows(start, target, speed, limits.max_accel * _ACCEL_MARGIN,
-                        limits.max_jerk * _JERK_MARGIN)
+    return _ruckig_solution(start, target, speed, limits.max_accel * _ACCEL_MARGIN,
+                            limits.max_jerk * _JERK_MARGIN)
 
 
 def _straight_motion(path, limits, speed_cap, profile):
     """Time a move without an arc (under 1 mm sideways): one straight segment, rest to rest."""
-    rows = _line_rows((0.0, 0.0, 0.0), (path.length, 0.0, 0.0), limits, speed_cap,
-                      0.0, path.length)
+    rows, why = _line_solution((0.0, 0.0, 0.0), (path.length, 0.0, 0.0), limits, speed_cap,
+                               0.0, path.length)
     if rows is None:
         raise LimitError('straight move: expected Ruckig to find a rest-to-rest motion, '
-                         f'got none for {path.length:.6g} m')
+                         f'got none for {path.length:.6g} m ({why})')
     pieces = _PieceList()
     pieces.extend(rows)
     law = pieces.law()
