@@ -77,8 +77,10 @@ _END_TRIES = 12
 _HILL_BUDGET = 40
 # The sure but slow construction, when the scans find nothing: Ruckig pieces between knots.
 _FALLBACK_PIECES = 24
-# Steps both scans go on past their crossing, room for the piece that joins them.
-_JOIN_ROOM_STEPS = 40
+# Steps both scans go on past their crossing, room for the piece that joins them: a few
+# first (most joins need less than 10 ms), the rest only if the join fails with those.
+_JOIN_ROOM_STEPS = 15
+_JOIN_ROOM_MORE = 25
 # Share of the acceleration and jerk limits that cruising (s'' = 0) uses at the ceiling that
 # places speed valleys.
 _CEILING_SHARE = 0.9
@@ -101,7 +103,7 @@ class _EndTooFast(Exception):
 class _ArcTable:
     """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
 
-    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at')
+    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at', 'cap_at')
 
     def __init__(self, length, kappa, kappa_s, cap):
         # Lists, not arrays: the scans read single values, which lists serve faster.
@@ -110,6 +112,7 @@ class _ArcTable:
         self.last = len(kappa) - 2
         self.kappa, self.kappa_s, self.cap = kappa, kappa_s, cap
         self.at = _lookup(self.step, self.last, kappa, kappa_s, cap)
+        self.cap_at = _cap_lookup(self.step, self.last, cap)
 
     def backwards(self):
         """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
@@ -133,6 +136,18 @@ def _lookup(step, last, kappa, kappa_s, cap):
         return (low + fraction * (kappa[index + 1] - low),
                 low_s + fraction * (kappa_s[index + 1] - low_s), cap[index])
     return at
+
+
+def _cap_lookup(step, last, cap):
+    """Return cap_at(s) -> the speed cap of the cell at arc length s (what ``at`` reads)."""
+    def cap_at(s):
+        index = int(s / step)
+        if index < 0:
+            index = 0
+        elif index > last:
+            index = last
+        return cap[index]
+    return cap_at
 
 
 class _Scan:
@@ -216,6 +231,7 @@ class _Scanner:
         self.factor = [1.0] * (len(table.kappa) + 1)
         # The scan's inner loop reads these thousands of times per leg: plain attributes.
         self._at = table.at
+        self._cap_at = table.cap_at
         self._accel_squared = self.accel ** 2
         self._jerk_squared = self.jerk ** 2
         self._cell = table.step
@@ -278,11 +294,15 @@ class _Scanner:
         """Take one scan step from state (s, v, a): (h, s, v, a, jerk) or a failure string."""
         at = self._at
         kappa, kappa_s, cap = at(s)
-        bounds = self._jerk_range(kappa, kappa_s, v, a)
+        # _jerk_range, written out: this is the scan's inner loop.
+        v3 = v * v * v
+        normal = kappa_s * v3 + 3.0 * kappa * v * a
         speed = min(self.speed, cap)
-        if bounds is None or v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
+        if (abs(normal) >= self.jerk or v > speed * (1.0 + 1e-9)
+                or (a < 0.0 and v < _MIN_SCAN_SPEED)):
             return 'speed'
-        lowest, highest = bounds
+        room = math.sqrt(self._jerk_squared - normal * normal)
+        lowest, highest = kappa * kappa * v3 - room, kappa * kappa * v3 + room
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
             # The curvature changes fast here (a needle-sharp bend): shorter steps.
@@ -292,7 +312,8 @@ class _Scanner:
         # Level off (and cruise) at the lowest speed limit until where the levelling off
         # would end.
         reach = v * max(a, _LEVEL_REACH * self.accel) / level
-        goal = min(speed, at(s + 0.5 * reach)[2], at(s + reach)[2])
+        cap_at = self._cap_at
+        goal = min(speed, cap_at(s + 0.5 * reach), cap_at(s + reach))
         if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
             jerk, a = 0.0, 0.0
             # Cruising changes nothing but the place: up to half a table cell per step.
@@ -323,7 +344,8 @@ class _Scanner:
                 # s'' passes 0 inside the step: its speed peak must stay below the limit too.
                 jerk, h = self._level_off(v, a, goal, h, level)
         if jerk >= lowest - 1e-9:
-            jerk = self._end_feasible(s, v, a, jerk, lowest, h)
+            if not self._legal(s, v, a, h, jerk):
+                jerk = self._end_feasible(s, v, a, jerk, lowest, h)
             if jerk is not None:
                 return (h, s + h * (v + h * (a / 2.0 + h * jerk / 6.0)),
                         v + h * (a + h * jerk / 2.0), a + h * jerk, jerk)
@@ -349,10 +371,8 @@ class _Scanner:
         return low
 
     def _end_feasible(self, s, v, a, jerk, lowest, h):
-        """Return ``jerk``, or the largest one in [lowest, jerk] legal at the step's end."""
+        """Return the largest jerk in [lowest, ``jerk``] legal at the step's end, or None."""
         legal = self._legal
-        if legal(s, v, a, h, jerk):
-            return jerk
         low, high, best = lowest, jerk, None
         for _ in range(12):
             middle = 0.5 * (low + high)
@@ -503,6 +523,9 @@ class _ArcPlanner:
         backward = _Scan(length - s_b, state_b[0], -state_b[1], length - s_a)
         self._scan_both(forward, backward)
         joined = self._join(forward, backward)
+        if joined is None:
+            self._add_room(forward, backward, _JOIN_ROOM_MORE)
+            joined = self._join(forward, backward)
         if joined is not None:
             return joined, state_a, state_b
 
@@ -584,8 +607,11 @@ class _ArcPlanner:
                 other = forward.speed_at(length - backward.s[-1])
                 if other is not None and backward.v[-1] >= other * (1.0 - 1e-12):
                     break
-        # Room on both sides of the crossing for the joining piece (no backing up past it).
-        for _ in range(_JOIN_ROOM_STEPS):
+        self._add_room(forward, backward, _JOIN_ROOM_STEPS)
+
+    def _add_room(self, forward, backward, steps):
+        """Advance both scans ``steps`` past their crossing (no backing up past it)."""
+        for _ in range(steps):
             self.forward.advance(forward, back_up=False)
             self.backward.advance(backward, back_up=False)
 
