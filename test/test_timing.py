@@ -329,3 +329,16 @@ def test_node_period_is_the_papers_time_step():
 def test_curvature_profile_takes_the_documented_time_on_the_papers_example():
     """README and docs quote 2.2496 s for r = 0.77 (a slower law would break this)."""
     assert round(motion_of('paper', 'curvature').duration, 4) == 2.2496
+
+
+def test_time_optimal_profile_depends_on_the_problem_only():
+    """The same leg timed twice, and after other legs, gives the same pieces bit for bit."""
+    def pieces(name):
+        law = time_motion(PATHS[name](), LIMITS).law
+        return [law.times, law.s0, law.v0, law.a0, law.jerk]
+
+    first = pieces('paper')
+    for other in ('steep_apex', 'h_negative', 'cycle_25_305_25'):
+        pieces(other)
+    for before, after in zip(first, pieces('paper')):
+        assert np.array_equal(before, after)
