@@ -75,6 +75,9 @@ _END_RETRY_FACTOR = 0.8
 _END_TRIES = 12
 # Stretches solved per plan before giving up on the scans (the fallback then serves).
 _HILL_BUDGET = 40
+# Scan steps per plan (both directions, every stretch and retry) before giving up on the
+# scans likewise: a bound on the work, above the worst of 317 seeded random legs (7,867).
+_STEP_BUDGET = 12000
 # The sure but slow construction, when the scans find nothing: Ruckig pieces between knots.
 _FALLBACK_PIECES = 24
 # Steps both scans go on past their crossing, room for the piece that joins them: a few
@@ -90,6 +93,21 @@ _CAP_STAIR = 8
 
 class _NoMotion(Exception):
     """The scans found no motion for a stretch (the caller tries something slower)."""
+
+
+class _StepBudget:
+    """The scan steps a plan may still take (shared by its two scanners)."""
+
+    __slots__ = ('left',)
+
+    def __init__(self, steps):
+        self.left = steps
+
+    def spend(self):
+        """Count one step; raise _NoMotion once the budget is spent."""
+        self.left -= 1
+        if self.left < 0:
+            raise _NoMotion()
 
 
 class _EndTooFast(Exception):
@@ -223,8 +241,9 @@ class _Scan:
 class _Scanner:
     """The greedy path-space scan along one direction of the arc (see :func:`time_motion`)."""
 
-    def __init__(self, table, limits):
+    def __init__(self, table, limits, budget):
         self.table = table
+        self.budget = budget
         self.speed = limits.max_speed * _SPEED_MARGIN
         self.accel = limits.max_accel * _ACCEL_MARGIN
         self.jerk = limits.max_jerk * _JERK_MARGIN
@@ -395,6 +414,7 @@ class _Scanner:
         if scan.s[-1] >= scan.end:
             scan.status = 'end'
             return False
+        self.budget.spend()
         result = self.step(scan.s[-1], scan.v[-1], scan.a[-1])
         if not isinstance(result, str):
             h, s1, v1, a1, jerk = result
@@ -454,8 +474,9 @@ class _ArcPlanner:
             cells = np.repeat(lowest, _CAP_STAIR)
         self.grid = grid
         table = _ArcTable(self.length, kappa.tolist(), kappa_s.tolist(), cells.tolist())
-        self.forward = _Scanner(table, limits)
-        self.backward = _Scanner(table.backwards(), limits)
+        budget = _StepBudget(_STEP_BUDGET)
+        self.forward = _Scanner(table, limits, budget)
+        self.backward = _Scanner(table.backwards(), limits, budget)
         # The ceiling places the speed valleys and their speeds.
         cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
         self.ceiling = self._cruise_speed(kappa, kappa_s, cap, _CEILING_SHARE)
