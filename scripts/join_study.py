@@ -43,9 +43,9 @@ import math
 import sys
 
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
-from ellipath_ros.core import geometry, timing
+from ellipath_ros.core import geometry, optimal_profile
 from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
-from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.limits import _JERK_MARGIN, CartesianLimits
 from ellipath_ros.core.timing import time_motion
 import numpy as np
 from numpy.polynomial import Polynomial
@@ -60,11 +60,11 @@ PAIR_COUNT = 40
 PAIR_SEED = 7
 PAIR_RADIUS = 0.2
 PAIR_HEIGHTS = (-0.9, -0.75)
-# Shares of the scan (timing.py) raised one at a time, then all at once.
-TIMING_VARIANTS = ({}, {'NORMAL_JERK_SHARE': 0.98}, {'CEILING_SHARE': 0.98},
-                   {'VALLEY_SHARE': 0.98}, {'END_RETRY_FACTOR': 0.97, 'END_TRIES': 100},
-                   {'NORMAL_JERK_SHARE': 0.98, 'CEILING_SHARE': 0.98, 'VALLEY_SHARE': 0.98,
-                    'END_RETRY_FACTOR': 0.97, 'END_TRIES': 100})
+# Shares of the scan (optimal_profile.py) raised one at a time, then all at once.
+TIMING_VARIANTS = ({}, {'_NORMAL_JERK_SHARE': 0.98}, {'_CEILING_SHARE': 0.98},
+                   {'_VALLEY_SHARE': 0.98}, {'_END_RETRY_FACTOR': 0.97, '_END_TRIES': 100},
+                   {'_NORMAL_JERK_SHARE': 0.98, '_CEILING_SHARE': 0.98, '_VALLEY_SHARE': 0.98,
+                    '_END_RETRY_FACTOR': 0.97, '_END_TRIES': 100})
 TOLERANCES = (2.5e-4, 5e-4, 1e-3, 2e-3)
 
 
@@ -140,7 +140,7 @@ def corner_figures(path):
     samples = path.at_lengths(near)
     kappa = np.linalg.norm(samples.curvature, axis=1)
     kappa_s = float(np.linalg.norm(samples.curvature_rate[1]))
-    share = timing.CEILING_SHARE * timing.JERK_MARGIN * LIMITS.max_jerk
+    share = optimal_profile._CEILING_SHARE * _JERK_MARGIN * LIMITS.max_jerk
     cap = (share / kappa_s) ** (1.0 / 3.0) if kappa_s > 0.0 else math.inf
     return speed_t1, kappa_s, cap, float(kappa.max()) / path.arc.curvature_and_rate(
         np.array([math.pi]))[0][0]
@@ -181,7 +181,7 @@ def timing_variants():
     """Print the production design's ratios with the scan's shares raised."""
     print('## timing: shares of the limits in the scan raised (planned ratios, g2)')
     for variant in TIMING_VARIANTS:
-        with patched(timing, **variant) as names:
+        with patched(optimal_profile, **variant) as names:
             row = [f'{ratio(case, g2_path(case)):.4f}' for case in CYCLES]
         described = ', '.join(f'{name} {variant[name]}' for name in names) or 'as shipped'
         print(f"  {described}: {' | '.join(row)}")

@@ -17,6 +17,7 @@
 import functools
 import math
 
+from ellipath_ros.core import optimal_profile
 from ellipath_ros.core.curvature_profile import curvature_nodes
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy, plan_path
@@ -329,3 +330,35 @@ def test_node_period_is_the_papers_time_step():
 def test_curvature_profile_takes_the_documented_time_on_the_papers_example():
     """README and docs quote 2.2496 s for r = 0.77 (a slower law would break this)."""
     assert round(motion_of('paper', 'curvature').duration, 4) == 2.2496
+
+
+def test_time_optimal_profile_depends_on_the_problem_only():
+    """The same leg timed twice, and after other legs, gives the same pieces bit for bit."""
+    def pieces(name):
+        law = time_motion(PATHS[name](), LIMITS).law
+        return [law.times, law.s0, law.v0, law.a0, law.jerk]
+
+    first = pieces('paper')
+    for other in ('steep_apex', 'h_negative', 'cycle_25_305_25'):
+        pieces(other)
+    for before, after in zip(first, pieces('paper')):
+        assert np.array_equal(before, after)
+
+
+def test_spent_step_budget_falls_back_to_the_sure_construction(monkeypatch):
+    """A scan that runs out of steps hands over to the Ruckig-knot fallback, within limits."""
+    path = PATHS['paper']()
+    full = time_motion(path, LIMITS)
+    monkeypatch.setattr(optimal_profile, '_STEP_BUDGET', 50)
+    calls = []
+    fallback = optimal_profile._ArcPlanner.fallback
+    monkeypatch.setattr(optimal_profile._ArcPlanner, 'fallback',
+                        lambda planner, *ends: calls.append(ends) or fallback(planner, *ends))
+    slow = time_motion(path, LIMITS)
+    assert len(calls) == 1
+    # The fallback's knots rest at half the speed ceiling: slower than the scans.
+    assert slow.duration > full.duration
+    _, speed, accel, jerk = slow.sampled_norms()
+    assert speed.max() <= LIMITS.max_speed * (1.0 + ROUNDING)
+    assert accel.max() <= LIMITS.max_accel * (1.0 + ROUNDING)
+    assert jerk.max() <= LIMITS.max_jerk * (1.0 + ROUNDING)

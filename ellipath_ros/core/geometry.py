@@ -73,6 +73,12 @@ _BLEND_APEX_SHARE = 0.8
 _BLEND_MAX_SPAN = 0.45 * math.pi
 # The bent curve must keep at least this share of the ellipse's smallest parameter speed.
 _BLEND_MIN_SPEED_SHARE = 0.2
+# On tight, lopsided arcs a long transition bends the other way for a while (a slight S,
+# which the timing crawls through): such a span is halved until its curvature keeps its
+# sign on this many samples, then bisected this often towards the longest one that does.
+_BLEND_SIGN_SAMPLES = 257
+_BLEND_SIGN_HALVINGS = 20
+_BLEND_SIGN_BISECTIONS = 10
 _DENSE_SAMPLES = 4097
 
 # As phi* nears the critical angle the paper's ellipse collapses onto the chord T1-T2
@@ -633,7 +639,9 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     horizontal offset, which overstates it where the ellipse leans; but it ends
     before ``_BLEND_APEX_SHARE`` of the way to the apex and within
     ``_BLEND_MAX_SPAN``. Spans are halved while the bent curve would slow its
-    parameter speed to below ``_BLEND_MIN_SPEED_SHARE`` of the ellipse's.
+    parameter speed to below ``_BLEND_MIN_SPEED_SHARE`` of the ellipse's. A span
+    whose transition would bend the other way for a while (tight, lopsided arcs)
+    is shortened until its curvature keeps its sign (:func:`_one_way_span`).
     """
     tolerance = validate('join_tolerance', tolerance)
     # The horizontal offset bounds the distance: a span that is always short enough.
@@ -643,6 +651,8 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
         _longest_span(ellipse, tolerance, safe, min(_BLEND_APEX_SHARE * share, _BLEND_MAX_SPAN),
                       at_t1)
         for share, at_t1 in ((math.pi - t_apex, True), (t_apex, False)))
+    span_1 = _one_way_span(ellipse, span_1, True)
+    span_2 = _one_way_span(ellipse, span_2, False)
     t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
     speed = ellipse.speed(t)
     slowest = float(speed.min())
@@ -658,6 +668,47 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     raise DegenerateGeometryError(
         f'join: expected a regular G2 transition for l = {ellipse.l:.6g} m, '
         f'h = {ellipse.h:.6g} m, got none; use join paper')
+
+
+def _one_way_span(ellipse, span, at_t1):
+    """
+    Return the longest span up to ``span`` whose transition never bends the other way.
+
+    The transition subtracts a fixed share of the ellipse's own horizontal
+    acceleration; on a long span of a tight, lopsided ellipse that overturns the
+    curvature for a while. The sign is checked on ``_BLEND_SIGN_SAMPLES`` of the
+    transition; a span that fails is halved until one passes, then bisected
+    between the two (a shorter span moves the curve less from the ellipse, so it
+    stays within the tolerance).
+    """
+    if _bends_one_way(ellipse, span, at_t1):
+        return span
+    low, high = span, span
+    for _ in range(_BLEND_SIGN_HALVINGS):
+        high, low = low, 0.5 * low
+        if _bends_one_way(ellipse, low, at_t1):
+            break
+    else:
+        raise DegenerateGeometryError(
+            f'join: expected a G2 transition that bends one way for l = {ellipse.l:.6g} m, '
+            f'h = {ellipse.h:.6g} m, got none; use join paper')
+    for _ in range(_BLEND_SIGN_BISECTIONS):
+        middle = 0.5 * (low + high)
+        if _bends_one_way(ellipse, middle, at_t1):
+            low = middle
+        else:
+            high = middle
+    return low
+
+
+def _bends_one_way(ellipse, span, at_t1):
+    """Return whether the transition of ``span`` at T1 (``at_t1``) or T2 has curvature >= 0."""
+    # Its start (u = 0) has curvature 0, up to rounding: only the samples after it count.
+    u = np.linspace(0.0, 1.0, _BLEND_SIGN_SAMPLES)[1:]
+    t = math.pi - span * u if at_t1 else span * u
+    # Both spans alike: the two transitions never overlap (each is within _BLEND_MAX_SPAN).
+    kappa = BlendedArc(ellipse, span, span).curvature_and_rate(t)[0]
+    return bool(kappa.min() >= 0.0)
 
 
 def _longest_span(ellipse, tolerance, safe, cap, at_t1):

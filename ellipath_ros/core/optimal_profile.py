@@ -75,10 +75,15 @@ _END_RETRY_FACTOR = 0.8
 _END_TRIES = 12
 # Stretches solved per plan before giving up on the scans (the fallback then serves).
 _HILL_BUDGET = 40
+# Scan steps per plan (both directions, every stretch and retry) before giving up on the
+# scans likewise: a bound on the work, above the worst of 317 seeded random legs (7,867).
+_STEP_BUDGET = 12000
 # The sure but slow construction, when the scans find nothing: Ruckig pieces between knots.
 _FALLBACK_PIECES = 24
-# Steps both scans go on past their crossing, room for the piece that joins them.
-_JOIN_ROOM_STEPS = 40
+# Steps both scans go on past their crossing, room for the piece that joins them: a few
+# first (most joins need less than 10 ms), the rest only if the join fails with those.
+_JOIN_ROOM_STEPS = 15
+_JOIN_ROOM_MORE = 25
 # Share of the acceleration and jerk limits that cruising (s'' = 0) uses at the ceiling that
 # places speed valleys.
 _CEILING_SHARE = 0.9
@@ -88,6 +93,21 @@ _CAP_STAIR = 8
 
 class _NoMotion(Exception):
     """The scans found no motion for a stretch (the caller tries something slower)."""
+
+
+class _StepBudget:
+    """The scan steps a plan may still take (shared by its two scanners)."""
+
+    __slots__ = ('left',)
+
+    def __init__(self, steps):
+        self.left = steps
+
+    def spend(self):
+        """Count one step; raise _NoMotion once the budget is spent."""
+        self.left -= 1
+        if self.left < 0:
+            raise _NoMotion()
 
 
 class _EndTooFast(Exception):
@@ -101,7 +121,7 @@ class _EndTooFast(Exception):
 class _ArcTable:
     """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
 
-    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at')
+    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at', 'cap_at')
 
     def __init__(self, length, kappa, kappa_s, cap):
         # Lists, not arrays: the scans read single values, which lists serve faster.
@@ -110,6 +130,7 @@ class _ArcTable:
         self.last = len(kappa) - 2
         self.kappa, self.kappa_s, self.cap = kappa, kappa_s, cap
         self.at = _lookup(self.step, self.last, kappa, kappa_s, cap)
+        self.cap_at = _cap_lookup(self.step, self.last, cap)
 
     def backwards(self):
         """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
@@ -133,6 +154,18 @@ def _lookup(step, last, kappa, kappa_s, cap):
         return (low + fraction * (kappa[index + 1] - low),
                 low_s + fraction * (kappa_s[index + 1] - low_s), cap[index])
     return at
+
+
+def _cap_lookup(step, last, cap):
+    """Return cap_at(s) -> the speed cap of the cell at arc length s (what ``at`` reads)."""
+    def cap_at(s):
+        index = int(s / step)
+        if index < 0:
+            index = 0
+        elif index > last:
+            index = last
+        return cap[index]
+    return cap_at
 
 
 class _Scan:
@@ -208,14 +241,16 @@ class _Scan:
 class _Scanner:
     """The greedy path-space scan along one direction of the arc (see :func:`time_motion`)."""
 
-    def __init__(self, table, limits):
+    def __init__(self, table, limits, budget):
         self.table = table
+        self.budget = budget
         self.speed = limits.max_speed * _SPEED_MARGIN
         self.accel = limits.max_accel * _ACCEL_MARGIN
         self.jerk = limits.max_jerk * _JERK_MARGIN
         self.factor = [1.0] * (len(table.kappa) + 1)
         # The scan's inner loop reads these thousands of times per leg: plain attributes.
         self._at = table.at
+        self._cap_at = table.cap_at
         self._accel_squared = self.accel ** 2
         self._jerk_squared = self.jerk ** 2
         self._cell = table.step
@@ -278,11 +313,15 @@ class _Scanner:
         """Take one scan step from state (s, v, a): (h, s, v, a, jerk) or a failure string."""
         at = self._at
         kappa, kappa_s, cap = at(s)
-        bounds = self._jerk_range(kappa, kappa_s, v, a)
+        # _jerk_range, written out: this is the scan's inner loop.
+        v3 = v * v * v
+        normal = kappa_s * v3 + 3.0 * kappa * v * a
         speed = min(self.speed, cap)
-        if bounds is None or v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
+        if (abs(normal) >= self.jerk or v > speed * (1.0 + 1e-9)
+                or (a < 0.0 and v < _MIN_SCAN_SPEED)):
             return 'speed'
-        lowest, highest = bounds
+        room = math.sqrt(self._jerk_squared - normal * normal)
+        lowest, highest = kappa * kappa * v3 - room, kappa * kappa * v3 + room
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
             # The curvature changes fast here (a needle-sharp bend): shorter steps.
@@ -292,7 +331,8 @@ class _Scanner:
         # Level off (and cruise) at the lowest speed limit until where the levelling off
         # would end.
         reach = v * max(a, _LEVEL_REACH * self.accel) / level
-        goal = min(speed, at(s + 0.5 * reach)[2], at(s + reach)[2])
+        cap_at = self._cap_at
+        goal = min(speed, cap_at(s + 0.5 * reach), cap_at(s + reach))
         if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
             jerk, a = 0.0, 0.0
             # Cruising changes nothing but the place: up to half a table cell per step.
@@ -323,7 +363,8 @@ class _Scanner:
                 # s'' passes 0 inside the step: its speed peak must stay below the limit too.
                 jerk, h = self._level_off(v, a, goal, h, level)
         if jerk >= lowest - 1e-9:
-            jerk = self._end_feasible(s, v, a, jerk, lowest, h)
+            if not self._legal(s, v, a, h, jerk):
+                jerk = self._end_feasible(s, v, a, jerk, lowest, h)
             if jerk is not None:
                 return (h, s + h * (v + h * (a / 2.0 + h * jerk / 6.0)),
                         v + h * (a + h * jerk / 2.0), a + h * jerk, jerk)
@@ -349,10 +390,8 @@ class _Scanner:
         return low
 
     def _end_feasible(self, s, v, a, jerk, lowest, h):
-        """Return ``jerk``, or the largest one in [lowest, jerk] legal at the step's end."""
+        """Return the largest jerk in [lowest, ``jerk``] legal at the step's end, or None."""
         legal = self._legal
-        if legal(s, v, a, h, jerk):
-            return jerk
         low, high, best = lowest, jerk, None
         for _ in range(12):
             middle = 0.5 * (low + high)
@@ -375,6 +414,7 @@ class _Scanner:
         if scan.s[-1] >= scan.end:
             scan.status = 'end'
             return False
+        self.budget.spend()
         result = self.step(scan.s[-1], scan.v[-1], scan.a[-1])
         if not isinstance(result, str):
             h, s1, v1, a1, jerk = result
@@ -434,8 +474,9 @@ class _ArcPlanner:
             cells = np.repeat(lowest, _CAP_STAIR)
         self.grid = grid
         table = _ArcTable(self.length, kappa.tolist(), kappa_s.tolist(), cells.tolist())
-        self.forward = _Scanner(table, limits)
-        self.backward = _Scanner(table.backwards(), limits)
+        budget = _StepBudget(_STEP_BUDGET)
+        self.forward = _Scanner(table, limits, budget)
+        self.backward = _Scanner(table.backwards(), limits, budget)
         # The ceiling places the speed valleys and their speeds.
         cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
         self.ceiling = self._cruise_speed(kappa, kappa_s, cap, _CEILING_SHARE)
@@ -503,6 +544,9 @@ class _ArcPlanner:
         backward = _Scan(length - s_b, state_b[0], -state_b[1], length - s_a)
         self._scan_both(forward, backward)
         joined = self._join(forward, backward)
+        if joined is None:
+            self._add_room(forward, backward, _JOIN_ROOM_MORE)
+            joined = self._join(forward, backward)
         if joined is not None:
             return joined, state_a, state_b
 
@@ -584,8 +628,11 @@ class _ArcPlanner:
                 other = forward.speed_at(length - backward.s[-1])
                 if other is not None and backward.v[-1] >= other * (1.0 - 1e-12):
                     break
-        # Room on both sides of the crossing for the joining piece (no backing up past it).
-        for _ in range(_JOIN_ROOM_STEPS):
+        self._add_room(forward, backward, _JOIN_ROOM_STEPS)
+
+    def _add_room(self, forward, backward, steps):
+        """Advance both scans ``steps`` past their crossing (no backing up past it)."""
+        for _ in range(steps):
             self.forward.advance(forward, back_up=False)
             self.backward.advance(backward, back_up=False)
 
