@@ -36,8 +36,8 @@ def overshooting_points(real_points):
     The executed table is the real one (within the bounds): only a check of
     the interpolation between the points can see the overshoot.
     """
-    def built(motion, config, bounds):
-        trajectory, error, table = real_points(motion, config, bounds)
+    def built(motion, config, bounds, samples=None):
+        trajectory, error, table = real_points(motion, config, bounds, samples)
         ends = trajectory.positions[[0, -1]]
         travel = float(np.abs(ends[1] - ends[0]).max())
         duration = 15.0 / 8.0 * travel / (2.0 * config.joint_limits.max_velocity)

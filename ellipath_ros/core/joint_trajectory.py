@@ -55,10 +55,15 @@ _SAFETY = 0.95
 _INITIAL_STEP = 0.05
 # Trials of error-density re-placement after the first refine-and-prune search.
 _REPLACEMENTS = 6
-# Time step of the table of planned positions the knot search checks against [s], used for
-# tolerances from this one up [m] (below, the motion is evaluated at every check point).
-_PLANNED_TABLE_STEP = 2e-4
+# The knot search checks against a table of planned positions built on the motion's samples
+# (MotionSamples), for tolerances from this one up [m]; below, the motion is evaluated at
+# every check point.
 _PLANNED_TABLE_MIN_TOLERANCE = 1e-5
+# Samples of a motion that has no sample set of its own: at most this far apart [s], plus its
+# jerk steps.
+_SAMPLE_PERIOD = 1e-4
+# Samples closer than this share of the duration count as one time (both sides of a step).
+_SAME_TIME = 1e-8
 
 # Executed (JTC-interpolated) peaks, in this order: TCP speed [m/s], acceleration [m/s^2] and
 # jerk [m/s^3], joint speed [rad/s] and acceleration [rad/s^2].
@@ -458,15 +463,18 @@ def _checked_state_at(motion, times):
 def _joint_states(motion, geometry, times):
     """Joint positions, velocities and accelerations of the motion at ``times`` (N,)."""
     points, velocities, accelerations, _ = _checked_state_at(motion, times)
+    return _joint_motion_at(times, points, velocities, accelerations, geometry)
+
+
+def _joint_motion_at(times, points, velocities, accelerations, geometry):
+    """Return :func:`joint_motion` of TCP states at ``times``, errors naming the time."""
     try:
-        q, qdot, qddot = joint_motion(points, velocities, accelerations, geometry,
-                                      name='TCP position')
+        return joint_motion(points, velocities, accelerations, geometry, name='TCP position')
     except UnreachableError as error:
         index = error.index
         wrapped = UnreachableError(f'motion at t={times[index]:.6g} s: {error}')
         wrapped.index = index
         raise wrapped from error
-    return q, qdot, qddot
 
 
 def _names(joint_names):
@@ -551,38 +559,156 @@ def _segment_errors(planned, geometry, knots, start, end, fractions):
     return np.where(np.isnan(error), np.inf, error).max(axis=1)
 
 
-class _PlannedPositions:
+class MotionSamples:
     """
-    The motion's TCP position at any time, from one dense evaluation.
+    A motion sampled once, in TCP and joint space.
 
-    The motion is evaluated once, every ``_PLANNED_TABLE_STEP`` at most, and
-    interpolated by the quintic through position, velocity and acceleration at
-    both ends of each step (the interpolation JTC itself uses). Its error is
-    largest at an acceleration step (the paper's join): below 2e-8 m on random
-    legs, under 0.2 % of the tolerances it is used for
-    (``_PLANNED_TABLE_MIN_TOLERANCE``). The knot search then needs no motion
-    evaluation for its check grids.
+    The knot search, the points added at jerk steps, the planned joint peaks
+    and the knots' TCP positions all read these samples instead of evaluating
+    the motion again: a knot is placed on the sample nearest to where a rule
+    wants it (:meth:`states`), and the motion is evaluated only where no
+    sample is near enough. A timed motion brings its own samples (those of its
+    final limit check, ``sampled_states``: every 0.1 ms and both sides of every
+    piece bound of its law); any other motion is sampled every
+    ``_SAMPLE_PERIOD`` and at its jerk steps. A uniform slow-down
+    (:meth:`scaled`) only rescales them: the joint motion of a motion slowed
+    down by f is the same joint path with velocities / f and accelerations /
+    f**2.
+
+    Attributes
+    ----------
+    motion : Motion
+        The sampled motion.
+    times : numpy.ndarray
+        Sample times [s], (N,), sorted, from 0 to the duration.
+    position, velocity, acceleration : numpy.ndarray
+        TCP states at ``times`` [m, m/s, m/s^2], (N, 3).
+    q, qdot, qddot : numpy.ndarray
+        Joint states at ``times`` [rad, rad/s, rad/s^2], (N, 3).
+
     """
 
-    def __init__(self, motion, duration):
-        count = max(2, math.ceil(duration / _PLANNED_TABLE_STEP)) + 1
-        self.times = np.linspace(0.0, duration, count)
-        position, velocity, acceleration, _ = _checked_state_at(motion, self.times)
-        index = np.arange(count - 1)
-        self.coefficients = interpolation_coefficients(
-            np.diff(self.times), position[index], position[index + 1], velocity[index],
-            velocity[index + 1], acceleration[index], acceleration[index + 1])
+    def __init__(self, motion, geometry, times, position, velocity, acceleration, joints=None):
+        """Keep the samples; ``joints`` (q, q_dot, q_ddot) are computed when not given."""
+        self.motion, self.geometry = motion, geometry
+        self.times = times
+        self.position, self.velocity, self.acceleration = position, velocity, acceleration
+        if joints is None:
+            joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
+        self.q, self.qdot, self.qddot = joints
+        self._planned = None
 
-    def __call__(self, times):
-        """Return the planned positions at ``times`` (N,) [s], shape (N, 3) [m]."""
-        step = np.clip(np.searchsorted(self.times, times, side='right') - 1, 0,
-                       self.times.size - 2)
-        offset = (times - self.times[step])[:, np.newaxis]
-        return evaluate_polynomials(self.coefficients[step], offset, derivatives=False)[:, 0]
+    @classmethod
+    def of(cls, motion, geometry):
+        """Sample ``motion`` (its own sample set if it has one) and convert to joint space."""
+        sampled = getattr(motion, 'sampled_states', None)
+        if sampled is not None:
+            times, position, velocity, acceleration, _ = sampled()
+        else:
+            duration = _motion_duration(motion)
+            times = np.linspace(0.0, duration, max(2, math.ceil(duration / _SAMPLE_PERIOD)) + 1)
+            steps = getattr(motion, 'jerk_steps', None)
+            if steps is not None:
+                times = np.union1d(times, steps()[0])
+            position, velocity, acceleration, _ = _checked_state_at(motion, times)
+        return cls(motion, geometry, times, position, velocity, acceleration)
+
+    @property
+    def duration(self):
+        """Time of the last sample [s]."""
+        return float(self.times[-1])
+
+    def scaled(self, factor, motion):
+        """Return the samples of ``motion``, this motion slowed down uniformly by ``factor``."""
+        if factor == 1.0:
+            return self
+        return MotionSamples(
+            motion, self.geometry, self.times * factor, self.position, self.velocity / factor,
+            self.acceleration / factor ** 2,
+            (self.q, self.qdot / factor, self.qddot / factor ** 2))
+
+    def joint_peaks(self):
+        """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
+        return float(np.abs(self.qdot).max()), float(np.abs(self.qddot).max())
+
+    def states(self, times, low=None, high=None):
+        """
+        Return times and exact joint states of knots wanted at ``times`` (K,).
+
+        Each knot goes to the sample nearest to its time if that sample lies in
+        the middle half of its cell, between ``low`` and ``high`` (arrays
+        (K,)); without them, only to a sample within ``_SAME_TIME`` of the
+        duration of it. Where there is none the motion is evaluated at the
+        wanted time itself.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            (times (K,), q, q_dot, q_ddot (K, 3)).
+
+        """
+        times = np.asarray(times, dtype=float)
+        nearest = _nearest_sample(self.times, times)
+        moved = self.times[nearest]
+        if low is None:
+            usable = np.abs(moved - times) <= _SAME_TIME * self.duration
+        else:
+            usable = (moved - low >= 0.5 * (times - low)) & (high - moved >= 0.5 * (high - times))
+        result_times = np.where(usable, moved, times)
+        q, qdot, qddot = (values[nearest] for values in (self.q, self.qdot, self.qddot))
+        if not usable.all():
+            missing = ~usable
+            q[missing], qdot[missing], qddot[missing] = _joint_states(
+                self.motion, self.geometry, times[missing])
+        return result_times, q, qdot, qddot
+
+    def tcp_positions(self, times):
+        """Return the planned TCP positions at ``times`` (K,), of samples where there are."""
+        nearest = _nearest_sample(self.times, times)
+        same = np.abs(self.times[nearest] - times) <= _SAME_TIME * self.duration
+        position = self.position[nearest]
+        if not same.all():
+            position[~same] = _checked_state_at(self.motion, times[~same])[0]
+        return position
+
+    def planned(self, times):
+        """
+        Return the planned positions at ``times`` (N,) [s], shape (N, 3) [m].
+
+        Interpolated between the samples by the quintic through position,
+        velocity and acceleration at both ends (the interpolation JTC itself
+        uses): within 2e-8 m of the motion on random legs, even across the
+        acceleration step of the paper's join (the step's two sides are
+        samples), under 0.2 % of the tolerances it serves
+        (``_PLANNED_TABLE_MIN_TOLERANCE``).
+        """
+        if self._planned is None:
+            # Of two samples at the same time (both sides of a step), the later one.
+            keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
+            keep[0] = True
+            table_times = self.times[keep]
+            index = np.arange(table_times.size - 1)
+            position, velocity, acceleration = (
+                values[keep] for values in (self.position, self.velocity, self.acceleration))
+            self._planned = table_times, interpolation_coefficients(
+                np.diff(table_times), position[index], position[index + 1], velocity[index],
+                velocity[index + 1], acceleration[index], acceleration[index + 1])
+        table_times, coefficients = self._planned
+        step = np.clip(np.searchsorted(table_times, times, side='right') - 1, 0,
+                       table_times.size - 2)
+        offset = (times - table_times[step])[:, np.newaxis]
+        return evaluate_polynomials(coefficients[step], offset, derivatives=False)[:, 0]
+
+
+def _nearest_sample(sorted_times, targets):
+    """Return the index of the sample of ``sorted_times`` nearest to each of ``targets``."""
+    index = np.clip(np.searchsorted(sorted_times, targets), 1, sorted_times.size - 1)
+    closer_before = targets - sorted_times[index - 1] <= sorted_times[index] - targets
+    return np.where(closer_before, index - 1, index)
 
 
 def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1e-4, *,
-                  check_samples=24, min_interval=1e-6):
+                  check_samples=24, min_interval=1e-6, samples=None):
     """
     Few knots whose JTC quintic interpolation follows the planned TCP path within tolerance.
 
@@ -602,7 +728,9 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
        too). At most six trials.
 
     The result is locally minimal (no single knot can be removed), includes t = 0 and
-    t = duration, and is typically within one or two knots of the greedy optimum.
+    t = duration, and is typically within one or two knots of the greedy optimum. Knots sit
+    on the motion's samples (:class:`MotionSamples`) nearest to where the search wants them,
+    so the search evaluates the motion only where no sample is near.
 
     Parameters
     ----------
@@ -618,6 +746,8 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
         Interior check points per segment, >= 20.
     min_interval : float
         Shortest allowed knot interval [s]; the search gives up below it.
+    samples : MotionSamples, optional
+        The motion's samples (``MotionSamples.of(motion, geometry)`` when omitted).
 
     Returns
     -------
@@ -636,12 +766,13 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     names = _names(joint_names)
     duration = _motion_duration(motion)
     accept = _SAFETY * require_range('tolerance', tolerance, 0.0, low_open=True, unit='m')
-    samples = int(require_range('check_samples', check_samples, 20.0))
+    check_count = int(require_range('check_samples', check_samples, 20.0))
     shortest = require_range('min_interval', min_interval, 0.0, low_open=True, unit='s')
-    fractions = np.arange(1, samples + 1) / (samples + 1.0)
+    fractions = np.arange(1, check_count + 1) / (check_count + 1.0)
 
+    samples = MotionSamples.of(motion, geometry) if samples is None else samples
     if accept >= _PLANNED_TABLE_MIN_TOLERANCE:
-        planned = _PlannedPositions(motion, duration)
+        planned = samples.planned
     else:
         def planned(times):
             return _checked_state_at(motion, times)[0]
@@ -649,11 +780,12 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     def errors_of(knots, start, end):
         return _segment_errors(planned, geometry, knots, start, end, fractions)
 
-    times = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
-    knots = _Knots(times, *_joint_states(motion, geometry, times))
+    knots = _Knots(*samples.states(*_with_cells(
+        np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1))))
+    times = knots.time_from_start
     index = np.arange(times.size)
     errors = errors_of(knots, index[:-1], index[1:])
-    knots, errors = _refine(motion, geometry, knots, errors, accept, shortest, errors_of)
+    knots, errors = _refine(samples, knots, errors, accept, shortest, errors_of)
     knots, errors = _prune(knots, errors, accept, errors_of)
     # Dyadic halving leaves knots on a coarse lattice: re-place them from the measured error
     # density with fewer segments, and keep a set only if every segment passes.
@@ -662,10 +794,10 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     for _ in range(_REPLACEMENTS):
         if target < 1:
             break
-        trial_times = _equidistribute(times, measured, target)
+        trial = _Knots(*samples.states(*_with_cells(_equidistribute(times, measured, target))))
+        trial_times = trial.time_from_start
         if np.diff(trial_times).min() < shortest:
             break
-        trial = _Knots(trial_times, *_joint_states(motion, geometry, trial_times))
         index = np.arange(trial_times.size)
         trial_errors = errors_of(trial, index[:-1], index[1:])
         times, measured = trial_times, trial_errors
@@ -708,7 +840,13 @@ def _equidistribute(times, errors, count):
     return new_times
 
 
-def _refine(motion, geometry, knots, errors, accept, shortest, errors_of):
+def _with_cells(times):
+    """Return ``times`` (K,) and the bounds (K,), (K,) a knot wanted there may move within."""
+    middles = 0.5 * (times[:-1] + times[1:])
+    return times, np.concatenate(([-np.inf], middles)), np.concatenate((middles, [np.inf]))
+
+
+def _refine(samples, knots, errors, accept, shortest, errors_of):
     """Halve rejected segments until every segment error is <= accept."""
     while True:
         rejected = errors > accept
@@ -722,8 +860,9 @@ def _refine(motion, geometry, knots, errors, accept, shortest, errors_of):
                 f'tolerance: expected a tolerance the motion can meet with knots at least '
                 f'{shortest:g} s apart, got {accept / _SAFETY:g} m (error '
                 f'{errors[worst]:.3g} m left near t={times[worst]:.6g} s)')
-        middle = 0.5 * (times[:-1] + times[1:])[rejected]
-        states = _joint_states(motion, geometry, middle)
+        start = np.flatnonzero(rejected)
+        middle, *states = samples.states(0.5 * (times[start] + times[start + 1]),
+                                         times[start], times[start + 1])
         order = np.argsort(np.concatenate([times, middle]), kind='stable')
         merged = _Knots(*(np.concatenate([old, new])[order] for old, new in zip(
             (times, knots.positions, knots.velocities, knots.accelerations),

@@ -50,7 +50,6 @@ _AZIMUTHS = 2.0 * np.pi * np.arange(3) / 3.0
 # Row i: radial unit vector e_i, tangential unit vector t_i of arm i.
 _RADIAL = np.stack([np.cos(_AZIMUTHS), np.sin(_AZIMUTHS), np.zeros(3)], axis=1)
 _TANGENT = np.stack([-np.sin(_AZIMUTHS), np.cos(_AZIMUTHS), np.zeros(3)], axis=1)
-_UP = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True)
@@ -401,23 +400,38 @@ def _forward(q, geometry, name, strict=True):
 
 def _arm_vectors(points, q, geometry):
     """
-    Forearm vectors and elbow derivatives, each of shape (N, 3, 3) (sample, arm, xyz).
+    Forearm vectors and elbow derivatives per coordinate: three tuples (x, y, z) of (N, 3).
 
-    Returns ``s_i = C_i - B_i``, ``b_i = dB_i/dq_i`` and ``c_i = d^2B_i/dq_i^2``.
+    Returns ``s_i = C_i - B_i``, ``b_i = dB_i/dq_i`` and ``c_i = d^2B_i/dq_i^2``, each
+    coordinate an array of shape (N, 3) (sample, arm). The arms have fixed azimuths, so
+    written per coordinate no (N, 3, 3) temporaries are needed.
     """
-    cos_q = np.cos(q)[:, :, np.newaxis]
-    sin_q = np.sin(q)[:, :, np.newaxis]
+    cos_q, sin_q = np.cos(q), np.sin(q)
     upper = geometry.upper_arm
-    elbow = (geometry.base_radius + upper * cos_q) * _RADIAL - upper * sin_q * _UP
-    forearm = points[:, np.newaxis, :] + geometry.effector_radius * _RADIAL - elbow
-    d_elbow = -upper * sin_q * _RADIAL - upper * cos_q * _UP
-    dd_elbow = -upper * cos_q * _RADIAL + upper * sin_q * _UP
+    ex, ey = _RADIAL[:, 0], _RADIAL[:, 1]
+    reach = geometry.effector_radius - geometry.base_radius - upper * cos_q
+    upper_sin, upper_cos = upper * sin_q, upper * cos_q
+    forearm = (points[:, 0:1] + reach * ex, points[:, 1:2] + reach * ey,
+               points[:, 2:3] + upper_sin)
+    d_elbow = (-upper_sin * ex, -upper_sin * ey, -upper_cos)
+    dd_elbow = (-upper_cos * ex, -upper_cos * ey, upper_sin)
     return forearm, d_elbow, dd_elbow
+
+
+def _dot(first, second):
+    """Per-arm dot product of two vectors given per coordinate, (N, 3)."""
+    return first[0] * second[0] + first[1] * second[1] + first[2] * second[2]
+
+
+def _dot_point(first, vectors):
+    """Per-arm dot product of per-coordinate arm vectors with TCP vectors (N, 3), (N, 3)."""
+    return (first[0] * vectors[:, 0:1] + first[1] * vectors[:, 1:2]
+            + first[2] * vectors[:, 2:3])
 
 
 def _ik_diagonal(forearm, d_elbow, geometry, name):
     """Return ``s_i . b_i`` (N, 3), raising at the first IK singularity."""
-    diagonal = np.einsum('nij,nij->ni', forearm, d_elbow)
+    diagonal = _dot(forearm, d_elbow)
     scale = geometry.upper_arm * geometry.forearm
     singular = (np.abs(diagonal) < _SINGULARITY_TOLERANCE * scale).any(axis=1)
     if singular.any():
@@ -583,16 +597,16 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
 
 def _velocity_rates(forearm, diagonal, velocities):
     """Return q_dot = (s_i . p_dot) / (s_i . b_i), (N, 3)."""
-    return np.einsum('nij,nj->ni', forearm, velocities) / diagonal
+    return _dot_point(forearm, velocities) / diagonal
 
 
 def _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities, accelerations,
                         qdot):
     """Return q_ddot; see :func:`joint_accelerations`."""
-    forearm_rate = velocities[:, np.newaxis, :] - d_elbow * qdot[:, :, np.newaxis]
-    numerator = (np.einsum('nij,nj->ni', forearm, accelerations)
-                 + np.einsum('nij,nij->ni', forearm_rate, forearm_rate)
-                 - np.einsum('nij,nij->ni', forearm, dd_elbow) * qdot * qdot)
+    forearm_rate = tuple(velocities[:, axis:axis + 1] - d_elbow[axis] * qdot
+                         for axis in range(3))
+    numerator = (_dot_point(forearm, accelerations) + _dot(forearm_rate, forearm_rate)
+                 - _dot(forearm, dd_elbow) * qdot * qdot)
     return numerator / diagonal
 
 
@@ -635,15 +649,8 @@ def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
     """
     q = np.asarray(q, dtype=float)
     points = _forward(q, geometry, name, strict)
-    upper = geometry.upper_arm
-    cos_q, sin_q = np.cos(q), np.sin(q)  # (N, 3): sample, arm
-    ex, ey = _RADIAL[:, 0], _RADIAL[:, 1]
     # Forearm s = p + r e - B (B the elbow), b = dB/dq and c = d2B/dq2, per coordinate.
-    reach = geometry.effector_radius - geometry.base_radius - upper * cos_q
-    s = (points[:, 0:1] + reach * ex, points[:, 1:2] + reach * ey,
-         points[:, 2:3] + upper * sin_q)
-    b = (-upper * sin_q * ex, -upper * sin_q * ey, -upper * cos_q)
-    c = (-upper * cos_q * ex, -upper * cos_q * ey, upper * sin_q)
+    s, b, c = _arm_vectors(points, q, geometry)
     # Columns of A^-1 (A has the rows s_0, s_1, s_2) times det A: s_1 x s_2, s_2 x s_0, s_0 x s_1.
     columns = [_cross_of(s, first, second) for first, second in ((1, 2), (2, 0), (0, 1))]
     determinant = sum(s[axis][:, 0] * columns[0][axis] for axis in range(3))
@@ -660,17 +667,14 @@ def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
                           + rhs[:, 2] * columns[2][axis]) * inverse_det
                          for axis in range(3)], axis=1)
 
-    def dot(first, second):
-        return first[0] * second[0] + first[1] * second[1] + first[2] * second[2]
-
-    s_b, s_c = dot(s, b), dot(s, c)
+    s_b, s_c = _dot(s, b), _dot(s, c)
     velocity = solve(s_b * qdot)
     s_rate = tuple(velocity[:, axis:axis + 1] - b[axis] * qdot for axis in range(3))
-    acceleration = solve(s_c * qdot * qdot + s_b * qddot - dot(s_rate, s_rate))
+    acceleration = solve(s_c * qdot * qdot + s_b * qddot - _dot(s_rate, s_rate))
     s_accel = tuple(acceleration[:, axis:axis + 1] - c[axis] * qdot * qdot - b[axis] * qddot
                     for axis in range(3))
     jerk = solve(s_b * (qdddot - qdot ** 3) + 3.0 * s_c * qdot * qddot
-                 - 3.0 * dot(s_rate, s_accel))
+                 - 3.0 * _dot(s_rate, s_accel))
     return points, velocity, acceleration, jerk
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
+from .joint_trajectory import _nearest_sample
 
 PROFILES = ('curvature', 'time_optimal')
 # Default sample period of TimedMotion.metrics [s], and its most samples.
@@ -157,6 +158,9 @@ class TimedMotion:
     # Peaks (speed, acceleration, jerk) on the default samples, once sampled_norms has run: the
     # final limit check and metrics() share one sample set; scaled() scales them.
     _peaks: tuple | None = field(default=None, init=False, repr=False)
+    # That sample set itself, (t, position, velocity, acceleration, jerk): the planner derives
+    # its knots, joint peaks and jerk steps from it instead of sampling the motion again.
+    _states: tuple | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         if not isinstance(self.path, PickPlacePath):
@@ -279,10 +283,30 @@ class TimedMotion:
             [m/s**3]), each of shape (N,).
 
         """
-        norms = _norms(self, _check_times(self, max(_CHECK_PERIOD,
-                                                    self.duration / _METRICS_SAMPLES)))
+        t = _check_times(self, max(_CHECK_PERIOD, self.duration / _METRICS_SAMPLES))
+        s, v, a, j = self.path_state(t)
+        states = _cartesian(self.path, s, v, a, j)
+        norms = (s, *(np.sqrt(np.einsum('ij,ij->i', value, value)) for value in states[1:]))
         object.__setattr__(self, '_peaks', tuple(float(norm.max()) for norm in norms[1:]))
+        object.__setattr__(self, '_states', (t, *states))
         return norms
+
+    def sampled_states(self):
+        """
+        Return the samples of :meth:`sampled_norms` as vectors.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Times [s] (N,), sorted, and position [m], velocity [m/s],
+            acceleration [m/s**2] and jerk [m/s**3], each (N, 3). Both
+            sides of every bound of the law's constant-jerk pieces are
+            samples (1e-9 of the duration off the bound).
+
+        """
+        if self._states is None:
+            self.sampled_norms()
+        return self._states
 
     def jerk_steps(self):
         """
@@ -291,25 +315,57 @@ class TimedMotion:
         The jerk steps where the law's third derivative does (its piece bounds)
         and where the path's curvature rate does (T1, T2 and, with a G2 join,
         where the transitions meet the ellipse); the size is the norm of the
-        difference of the one-sided jerk vectors.
+        difference of the one-sided jerk vectors, 1e-9 of the duration off the
+        step on both sides. The law's bounds are samples of
+        :meth:`sampled_states` already, so only the path's marks are evaluated.
         """
         law_times = getattr(self.law, 'times', None)
-        candidates = [] if law_times is None else [law_times[1:-1] * self.time_scale]
-        path = self.path
-        if path.bend is not None:
-            bend = path.bend
-            marks = list(path.segment_ends[1:3])
-            if path.join == 'g2':
-                marks += list(path.segment_ends[1] + bend.s_from_t(
-                    np.array([math.pi - bend.span_1, bend.span_2])))
-            t = _sample_times(self.duration, _CHECK_PERIOD)
-            candidates.append(np.interp(marks, self.path_state(t)[0], t))
-        times = np.unique(np.concatenate(candidates)) if candidates else np.zeros(0)
-        times = times[(times > 0.0) & (times < self.duration)]
         epsilon = 1e-9 * self.duration
-        before = self.state_at(np.maximum(times - epsilon, 0.0))[3]
-        after = self.state_at(np.minimum(times + epsilon, self.duration))[3]
-        return times, np.linalg.norm(after - before, axis=1)
+        times, sizes = np.zeros(0), np.zeros(0)
+        if law_times is not None:
+            times = law_times[1:-1] * self.time_scale
+            sample_times, _, _, _, jerk = self.sampled_states()
+            before = _nearest_sample(sample_times, np.maximum(times - epsilon, 0.0))
+            after = _nearest_sample(sample_times, np.minimum(times + epsilon, self.duration))
+            sizes = np.linalg.norm(jerk[after] - jerk[before], axis=1)
+        marks = self._mark_times()
+        if marks.size:
+            before = self.state_at(np.maximum(marks - epsilon, 0.0))[3]
+            after = self.state_at(np.minimum(marks + epsilon, self.duration))[3]
+            times = np.concatenate((times, marks))
+            sizes = np.concatenate((sizes, np.linalg.norm(after - before, axis=1)))
+        order = np.argsort(times, kind='stable')
+        times, sizes = times[order], sizes[order]
+        unique = np.concatenate(([True], np.diff(times) > 0.0))
+        inside = unique & (times > 0.0) & (times < self.duration)
+        return times[inside], sizes[inside]
+
+    def _mark_times(self):
+        """Return the times [s] at which the path's curvature rate steps (T1, T2, G2 ends)."""
+        path = self.path
+        if path.bend is None:
+            return np.zeros(0)
+        bend = path.bend
+        marks = np.array(path.segment_ends[1:3])
+        if path.join == 'g2':
+            marks = np.concatenate((marks, path.segment_ends[1] + bend.s_from_t(
+                np.array([math.pi - bend.span_1, bend.span_2]))))
+        # s(t) is increasing: interpolate each mark between the lengths at the law's piece
+        # bounds (or samples), then refine by Newton steps on the law (where s' = 0 the
+        # interpolation stays).
+        law_times = getattr(self.law, 'times', None)
+        if law_times is not None:
+            t = np.interp(marks, np.append(self.law.s0, path.length),
+                          law_times * self.time_scale)
+        else:
+            sample_times = _sample_times(self.duration, _CHECK_PERIOD)
+            t = np.interp(marks, self.path_state(sample_times)[0], sample_times)
+        for _ in range(3):
+            s, v, _, _ = self.path_state(t)
+            moving = v > 1e-9
+            t = np.where(moving, np.clip(t - (s - marks) / np.where(moving, v, 1.0), 0.0,
+                                         self.duration), t)
+        return t
 
     def scaled(self, factor):
         """
@@ -340,6 +396,11 @@ class TimedMotion:
             speed, accel, jerk = self._peaks
             object.__setattr__(scaled, '_peaks',
                                (speed / factor, accel / factor ** 2, jerk / factor ** 3))
+        if self._states is not None:
+            t, position, velocity, acceleration, jerk = self._states
+            object.__setattr__(scaled, '_states', (
+                t * factor, position, velocity / factor, acceleration / factor ** 2,
+                jerk / factor ** 3))
         return scaled
 
 

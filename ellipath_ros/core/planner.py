@@ -33,12 +33,10 @@ import numpy as np
 from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
-    check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData,
-    knots_at, minimal_knots, quintic_interpolate, quintic_positions, sample_joint_trajectory,
-    validate_jtc)
+    check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData, minimal_knots,
+    MotionSamples, quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_motion, joint_velocities,
-    JointLimits)
+    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_velocities, JointLimits)
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
@@ -49,8 +47,6 @@ from .workspace import SafeWorkspace
 _REACH_CHECK_SPACING = 0.002
 # The joint-speed cap is interpolated between path samples: keep a margin for that.
 _JOINT_CAP_MARGIN = 0.97
-# Time step of the dense joint-limit check of the planned motion.
-_JOINT_CHECK_PERIOD = 0.0005
 # Interior points per knot segment at which JTC's quintic is checked against the limits.
 _QUINTIC_CHECK_SAMPLES = 16
 # Share of the joint limits the motion itself may use (JTC's quintic may overshoot it).
@@ -302,16 +298,6 @@ def _check_reach_and_speed_cap(path, config):
     return cap
 
 
-def _joint_peaks(motion, config):
-    """Return peak |q_dot| and |q_ddot| of the motion on a dense time grid."""
-    count = max(int(math.ceil(motion.duration / _JOINT_CHECK_PERIOD)) + 1, 3)
-    t = np.linspace(0.0, motion.duration, count)
-    position, velocity, acceleration, _ = motion.state_at(t)
-    _, qdot, qddot = joint_motion(position, velocity, acceleration, config.geometry,
-                                  name='motion point')
-    return float(np.abs(qdot).max()), float(np.abs(qddot).max())
-
-
 def _interpolation_error(motion, trajectory, config, per_segment=8):
     """Return the largest TCP deviation of JTC's quintic through ``trajectory``."""
     times = trajectory.time_from_start
@@ -370,19 +356,25 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
             f'leg duration: expected at most {_MAX_LEG_DURATION:g} s, got {timed.duration:.4g} s '
             f'({config.profile} profile on a {path.length:.4g} m path); raise the limits or '
             f'choose another arc policy or profile')
-    peak_velocity, peak_accel = _joint_peaks(timed, config)
+    # One sample set of the motion serves the joint peaks, the knots and their positions.
+    samples = MotionSamples.of(timed, config.geometry)
+    peak_velocity, peak_accel = samples.joint_peaks()
     limits = config.joint_limits
     # Joint velocity is handled by the cap; joint acceleration (and any cap leak) by slowing
     # the whole leg down uniformly: q_dot scales with 1/f, q_ddot with 1/f**2. What JTC
     # executes (its quintic between the points) is then checked against every limit; points
     # are added where it breaks one (_joint_points), and what they cannot mend slows the leg
-    # down by the measured excess (a few times at most).
+    # down by the measured excess (a few times at most). Slowing down by f needs no new
+    # knots: the same knots with times x f, velocities / f and accelerations / f**2 are
+    # those of the slower motion, and JTC's quintic through them is the same joint path
+    # slowed down, so its peaks scale exactly (speed / f, acceleration / f**2, jerk / f**3).
     slowdown = max(1.0, peak_velocity / (_JOINT_LIMIT_SHARE * limits.max_velocity),
                    math.sqrt(peak_accel / (_JOINT_LIMIT_SHARE * limits.max_acceleration)))
     bounds = executed_bounds(config)
+    motion = timed.scaled(slowdown) if slowdown > 1.0 else timed
+    trajectory, error, table = _joint_points(motion, config, bounds,
+                                             samples.scaled(slowdown, motion))
     for attempt in range(_SLOWDOWN_ATTEMPTS):
-        motion = timed.scaled(slowdown) if slowdown > 1.0 else timed
-        trajectory, error, table = _joint_points(motion, config, bounds)
         excess = _excess_factor(table.max(axis=0) / bounds)
         try:
             check_joint_limits(trajectory, config.geometry, limits,
@@ -398,9 +390,17 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
                 f'executed motion: expected JTC interpolation within the limits, got '
                 f'{_describe_excess(table.max(axis=0), bounds)} after {_SLOWDOWN_ATTEMPTS} '
                 'slow-downs')
-        slowdown *= max(excess * (1.0 + _SLOWDOWN_MARGIN), 1.0 + _SLOWDOWN_MARGIN)
+        factor = max(excess * (1.0 + _SLOWDOWN_MARGIN), 1.0 + _SLOWDOWN_MARGIN)
+        slowdown *= factor
+        motion = timed.scaled(slowdown)
+        if config.output_mode == 'samples':
+            # Samples keep their period: sampled again.
+            trajectory, error, table = _joint_points(motion, config, bounds,
+                                                     samples.scaled(slowdown, motion))
+        else:
+            trajectory, table = _slowed_points(trajectory, table, factor)
     _check_executed_workspace(trajectory, config, leg)
-    knot_positions = motion.state_at(trajectory.time_from_start)[0]
+    knot_positions = samples.tcp_positions(trajectory.time_from_start / slowdown)
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown, executed)
@@ -428,17 +428,26 @@ def _spaced(times, added):
     return np.array(merged)
 
 
-def _with_points(trajectory, motion, geometry, times):
+def _with_points(trajectory, samples, times):
     """Return ``trajectory`` with points at ``times`` (its own and new ones, sorted)."""
     new = ~np.isin(times, trajectory.time_from_start)
     if not new.any():
         return trajectory
-    added = knots_at(motion, geometry, times[new], trajectory.joint_names)
-    order = np.argsort(np.concatenate((trajectory.time_from_start, added.time_from_start)),
-                       kind='stable')
+    added = samples.states(times[new])
+    order = np.argsort(np.concatenate((trajectory.time_from_start, added[0])), kind='stable')
     return JointTrajectoryData(trajectory.joint_names, *(
-        np.concatenate((getattr(trajectory, name), getattr(added, name)))[order]
-        for name in ('time_from_start', 'positions', 'velocities', 'accelerations')))
+        np.concatenate((old, new))[order] for old, new in zip(
+            (trajectory.time_from_start, trajectory.positions, trajectory.velocities,
+             trajectory.accelerations), added)))
+
+
+def _slowed_points(trajectory, table, factor):
+    """Return ``trajectory`` and its executed ``table`` slowed down by ``factor``."""
+    slowed = JointTrajectoryData(
+        trajectory.joint_names, trajectory.time_from_start * factor, trajectory.positions,
+        trajectory.velocities / factor, trajectory.accelerations / factor ** 2)
+    # EXECUTED_KEYS order: TCP speed, acceleration, jerk, joint speed, acceleration.
+    return slowed, table / np.array([factor, factor ** 2, factor ** 3, factor, factor ** 2])
 
 
 def executed_bounds(config):
@@ -467,7 +476,7 @@ def _describe_excess(peaks, bounds):
                      for key, peak, bound in zip(EXECUTED_KEYS, peaks, bounds) if peak > bound)
 
 
-def _joint_points(motion, config, bounds):
+def _joint_points(motion, config, bounds, samples=None):
     """
     Return the JTC points of ``motion``, their TCP deviation and executed peaks per segment.
 
@@ -478,7 +487,8 @@ def _joint_points(motion, config, bounds):
     the jerk steps inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle
     if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded
     peak. Samples output is checked, not changed. The table (S, 5) has the peaks of each
-    segment in ``EXECUTED_KEYS`` order.
+    segment in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
+    are taken when given, else made here.
     """
     geometry = config.geometry
     if config.output_mode == 'samples':
@@ -486,8 +496,9 @@ def _joint_points(motion, config, bounds):
                                              config.joint_names)
         error = _interpolation_error(motion, trajectory, config)
         return trajectory, error, executed_table(trajectory, geometry)
+    samples = MotionSamples.of(motion, geometry) if samples is None else samples
     trajectory, error = minimal_knots(motion, geometry, config.joint_names,
-                                      config.knot_tolerance)
+                                      config.knot_tolerance, samples=samples)
     step_times, step_sizes = motion.jerk_steps()
     steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
     table = executed_table(trajectory, geometry)
@@ -502,7 +513,7 @@ def _joint_points(motion, config, bounds):
             start, end = times[index], times[index + 1]
             inside = steps[(steps > start) & (steps < end)]
             added.extend(inside if inside.size else [0.5 * (start + end)])
-        trajectory = _with_points(trajectory, motion, geometry, _spaced(times, added))
+        trajectory = _with_points(trajectory, samples, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
         # Points mend what the quintic adds to the motion, not what the motion itself has:
