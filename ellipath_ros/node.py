@@ -38,10 +38,15 @@ freedom and its effector stays level, so the orientation is ignored. Poses must 
 ``frame_id`` frame (there is no tf2 lookup) and have finite coordinates.
 
 Pairing of the two pose topics (parameter ``pairing``): ``stamp`` (default) pairs a place with
-the pick of identical ``header.stamp``, up to ``queue_depth`` picks waiting, so a message lost
-in transport never joins a place with another pick; ``sequence`` pairs a place with the
+the pick of identical ``header.stamp``, up to ``PENDING_PICKS`` picks waiting, so a message
+lost in transport never joins a place with another pick; ``sequence`` pairs a place with the
 pending pick. A place with no pick is rejected; a place consumes its pick either way.
 ``pick_place`` needs no pairing.
+
+Intake QoS (``INTAKE_QOS``): the pose topics are RELIABLE and KEEP_ALL, so DDS discards
+nothing the node has not read; when the node reads slower than a sender sends, the sender's
+``publish()`` blocks and then fails (back-pressure). Every message read is counted once in
+the statuses' ledger (``pairs_*``, ``picks_*``; docs/reliability.md).
 
 Sequencing (:mod:`ellipath_ros.core.sequencing`). Jazzy's joint_trajectory_controller
 replaces the running trajectory at its next control cycle whatever the new ``header.stamp``
@@ -112,7 +117,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import HistoryPolicy
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -133,10 +142,20 @@ SPIN_PERIOD = 0.1
 FLUSH_WAIT = 0.5
 # After a signal, the process ends this soon even if the orderly shutdown is stuck [s].
 STOP_DEADLINE = SHUTDOWN_WAIT + 3.0
-# Depth of the pose topics' subscription queues: far above queue_depth, so that a burst is
-# read by intake (which rejects what the cycle queue cannot take, with a status) instead of
-# being dropped by DDS without a word.
-INTAKE_TOPIC_DEPTH = 1000
+# QoS of the pose topics (pick_place, pick_pose, place_pose). KEEP_ALL + RELIABLE: DDS never
+# discards a message the node has not read (KEEP_LAST did, silently, in a flood). The bound on
+# memory is then DDS's resource limits (Fast DDS: max_samples 5000 per history by default):
+# once the node's history and the sender's are full, a RELIABLE/KEEP_ALL sender's publish()
+# blocks up to its max_blocking_time and then fails, so the sender knows (back-pressure).
+# Senders must publish RELIABLE; KEEP_ALL too, or their own KEEP_LAST history may overwrite
+# what was not yet delivered (docs/reliability.md).
+INTAKE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE, depth=1)
+# Most picks waiting for their place (stamp pairing; beyond it the oldest is evicted with a
+# status). The executor serves pick_pose before place_pose when both have messages, so in a
+# burst the picks are read ahead of their places by up to the place_pose backlog in DDS (two
+# histories of 5000, see INTAKE_QOS). A waiting pick takes about 0.3 kB.
+PENDING_PICKS = 12_000
 # The release thread polls the clock for this long before a release is due, rather than
 # sleeping until then: a sleeping thread can get a core milliseconds late on a busy machine.
 RELEASE_SPIN = 0.002  # s
@@ -218,12 +237,11 @@ class EllipathNode(Node):
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
         intake_group = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
-                                 INTAKE_TOPIC_DEPTH,
+        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place, INTAKE_QOS,
                                  callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_TOPIC_DEPTH,
+        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_QOS,
                                  callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_TOPIC_DEPTH,
+        self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_QOS,
                                  callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
@@ -348,7 +366,12 @@ class EllipathNode(Node):
         self._intake('pick_place', self._take_pick_place, message)
 
     def _intake(self, topic, handler, message):
-        """Run ``handler``; turn any failure into a status. The node keeps serving."""
+        """
+        Run ``handler``; turn any failure into a status. The node keeps serving.
+
+        Every message is counted exactly once: a pair (place_pose, pick_place) by the
+        sequencer, a pick_pose by the pairing (see ``pairs_*`` and ``picks_*`` in statuses).
+        """
         settings = self._settings  # one consistent snapshot for the whole message
         try:
             handler(message, settings)
@@ -361,12 +384,21 @@ class EllipathNode(Node):
             self._log_rejection(f'{topic} rejected: {error}')
             values = {'topic': topic, 'kind': error.kind}
             if topic in PAIR_TOPICS:
-                values.update(pair=self._sequencer.reject(), **self._queue_values())
-            self._publish_status(DiagnosticStatus.ERROR, str(error), values)
+                values['pair'] = self._sequencer.reject(error.kind)
+            else:
+                self._pairing.reject_pick()
+            self._publish_status(DiagnosticStatus.ERROR, str(error),
+                                 {**values, **self._queue_values()})
         except Exception as error:  # a bug in one message must not stop the node
             if topic in PAIR_TOPICS:
-                self._sequencer.reject()
+                self._sequencer.reject('internal')
+            else:
+                self._pairing.reject_pick()
             self._report_internal(topic, error)
+        for kind, text in self._pairing.take_notices():
+            self._log_rejection(text)
+            self._publish_status(DiagnosticStatus.WARN, text,
+                                 {'topic': 'pick_pose', 'kind': kind, **self._queue_values()})
 
     def _log_rejection(self, text):
         """Log an intake rejection, at most one per REJECTION_LOG_PERIOD (see there)."""
@@ -406,13 +438,9 @@ class EllipathNode(Node):
         self._checked_frame('pick_pose', message.header.frame_id, settings)
         position = self._checked_pick('pick_pose.pose.position', pose_position(message),
                                       settings)
-        warning = self._pairing.add_pick(_stamp_key(message.header.stamp), position,
-                                         settings.pairing, settings.queue_depth)
-        if warning is not None:
-            self._log_rejection(warning)
-            self._publish_status(DiagnosticStatus.WARN, warning,
-                                 {'topic': 'pick_pose', 'kind': 'pick_replaced',
-                                  'pending_picks': len(self._pairing)})
+        # A pick it displaces is reported by _intake (PosePairing.take_notices).
+        self._pairing.add_pick(_stamp_key(message.header.stamp), position, settings.pairing,
+                               PENDING_PICKS)
 
     def _take_place(self, message, settings):
         """Pair a place pose with its pick and queue the pair."""
@@ -469,7 +497,7 @@ class EllipathNode(Node):
                 start_source = 'queue_tail'
             motion = self._plan(request, start, start_source, settings)
         except EllipathError as error:
-            if not self._sequencer.plan_failed():
+            if not self._sequencer.plan_failed(error.kind):
                 return  # cleared while planned: the clear_queue status names it
             self.get_logger().warn(f'pair {request.number} ({request.topic}) rejected: {error}')
             self._publish_status(DiagnosticStatus.ERROR, str(error), {
@@ -477,7 +505,7 @@ class EllipathNode(Node):
                 **self._queue_values()})
             return
         except Exception as error:  # a bug in one plan must not stop the thread
-            self._sequencer.plan_failed()
+            self._sequencer.plan_failed('internal')
             self._report_internal(request.topic, error, pair=request.number)
             return
         # Reported before it is held, so that its 'released' status cannot come first.
@@ -594,7 +622,7 @@ class EllipathNode(Node):
         try:
             motion, check = self._checked_start(motion, settings)
         except EllipathError as error:
-            self._sequencer.release_failed()
+            self._sequencer.release_failed(error.kind)
             if self._sequencer.stopped:
                 return  # shutting down: the context may be gone
             reason = f'pair {request.number} dropped at release: {error}'
@@ -604,11 +632,11 @@ class EllipathNode(Node):
                 **self._queue_values()})
             return
         except Exception as error:  # a bug in one release must not stop the thread
-            self._sequencer.release_failed()
+            self._sequencer.release_failed('internal')
             self._report_internal(request.topic, error, pair=request.number)
             return
         if self._sequencer.stopped:  # shutting down: nothing new is sent to the robot
-            self._sequencer.release_failed()
+            self._sequencer.release_failed('stopped')
             return
         message = motion.details['message']
         belt_start = motion.details.get('belt_start')
@@ -741,12 +769,13 @@ class EllipathNode(Node):
     # --- diagnostics ----------------------------------------------------------------------
 
     def _queue_values(self):
-        """Return the queue length, the predicted end of the queue and the pair counters."""
+        """Return the queue length, the predicted end of the queue, the pair and pick ledgers."""
         now = time.monotonic()
         values = {'queue_length': len(self._sequencer),
                   'predicted_queue_end_in': self._sequencer.predicted_end(now) - now}
         values.update((f'pairs_{name}', count)
                       for name, count in self._sequencer.counts().items())
+        values.update((f'picks_{name}', count) for name, count in self._pairing.counts().items())
         return values
 
     def _release_values(self, release, check):

@@ -16,27 +16,36 @@
 Flood ``ellipath_node`` with pick/place pairs from another process (issue 13, item 3).
 
 Starts the node (``python -m ellipath_ros.node``, the code of this checkout) as a
-subprocess, then sends ``--rate`` pairs per second for ``--seconds``: even pair ids as one
-``pick_place`` PoseArray, odd ones as ``pick_pose`` then ``place_pose`` with a stamp of their
-own (``stamp`` pairing). Every pair is identifiable: its id is written into the pick's and
-the place's x and y. About ``--invalid`` of them are invalid (a NaN place, or a wrong frame).
-Records every ``/diagnostics`` status and every trajectory, samples the node's VmRSS, lets
-the queue drain, sends one more valid pair and checks:
+subprocess, then offers ``--rate`` pairs per second for ``--seconds``: with ``--stream
+pick_place`` each pair as one ``pick_place`` PoseArray, with ``two_topic`` as ``pick_pose``
+then ``place_pose`` with a stamp of their own (``stamp`` pairing), with ``mixed`` (default)
+even pair ids one way and odd ones the other. Every pair is identifiable: its id is written
+into the pick's and the place's x and y. About ``--invalid`` of them are invalid (a NaN
+place, or a wrong frame). The publishers are RELIABLE/KEEP_ALL, as the node asks of senders:
+when the node reads slower, ``publish()`` blocks and then raises (back-pressure); such a
+message is counted as refused (a pair whose pick was refused is not sent on; one whose place
+was refused leaves its pick at the node). Records every ``/diagnostics`` status and every
+trajectory, samples the node's VmRSS, lets the queue drain, sends one more valid pair and
+checks:
 
 * the node is alive and answers that pair (its trajectory arrives);
 * no trajectory joins a place with a pick it was not sent with (FK of its points);
 * every trajectory passes ``validate_jtc``;
-* the node's counters add up (received = released + rejected + dropped + queued +
-  releasing), and every pair number it counted has a status;
-* how many pairs DDS lost before the node read them (sent - received);
+* the ledger: sent = refused at the sender + received by the node, for pairs (pick_place and
+  place_pose messages) and for pick_pose messages; the node's pairs: received = released +
+  rejected (by kind) + dropped (by kind) + queued + releasing; its picks: received = paired +
+  pending + invalid + replaced + evicted + cleared; every pair number it counted has a
+  status;
 * the queue length stayed within ``queue_depth``;
 * latency under load (``plan_time``, ``receive_to_plan_latency``,
-  ``receive_to_publish_latency`` of the statuses; *planned*/*released*, not executed).
+  ``receive_to_publish_latency`` of the statuses, and send to trajectory arrival measured
+  here; *planned*/*released*, not executed).
 
 Prints the report as JSON; exit status 1 if a check failed. DDS stays on this host; give
 the run a domain of its own::
 
-    ROS_DOMAIN_ID=121 .venv/bin/python scripts/flood.py --rate 1000 --seconds 60
+    ROS_DOMAIN_ID=121 .venv/bin/python scripts/flood.py --rate 1000 --seconds 60 \
+        --stream pick_place
 """
 
 import argparse
@@ -56,6 +65,7 @@ from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.node import INTAKE_QOS
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
@@ -77,8 +87,12 @@ PICK_Z, PLACE_Z, PLACE_SHIFT = -0.85, -0.8, 0.05
 # A trajectory point is "the pick" if FK puts it this close to it [m]; pair ids are STEP
 # apart, so a pick of another pair is at least 100 µm away.
 PICK_TOLERANCE = 1e-6
-# Queue depth of this process's publishers and subscriptions: nothing is lost on our side.
+# Queue depth of this process's subscriptions: nothing is lost on our side.
 DEPTH = 100_000
+STREAMS = ('mixed', 'pick_place', 'two_topic')
+# Pair counters of the node; the pick counters; see EllipathNode._queue_values.
+PAIR_OUTCOMES = ('released', 'rejected', 'dropped', 'queued', 'releasing')
+PICK_OUTCOMES = ('paired', 'pending', 'invalid', 'replaced', 'evicted', 'cleared')
 # How long the node may take to start, to drain its queue, and to answer the last pair [s].
 START_TIMEOUT = 60.0
 DRAIN_TIMEOUT = 120.0
@@ -140,10 +154,11 @@ class Recorder:
         rclpy.init(context=self.context, domain_id=domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node('ellipath_flood', context=self.context)
-        qos = QoSProfile(depth=DEPTH)  # reliable, volatile: as the node's subscriptions
-        self.pick_place = self.node.create_publisher(PoseArray, 'pick_place', qos)
-        self.pick_pose = self.node.create_publisher(PoseStamped, 'pick_pose', qos)
-        self.place_pose = self.node.create_publisher(PoseStamped, 'place_pose', qos)
+        # RELIABLE/KEEP_ALL, as the node asks of senders (its own INTAKE_QOS).
+        self.pick_place = self.node.create_publisher(PoseArray, 'pick_place', INTAKE_QOS)
+        self.pick_pose = self.node.create_publisher(PoseStamped, 'pick_pose', INTAKE_QOS)
+        self.place_pose = self.node.create_publisher(PoseStamped, 'place_pose', INTAKE_QOS)
+        qos = QoSProfile(depth=DEPTH)
         self.statuses = []  # (arrival time.monotonic(), DiagnosticStatus)
         self.trajectories = []  # (arrival time.monotonic(), JointTrajectory)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics,
@@ -176,32 +191,54 @@ class Recorder:
                 and self.node.count_publishers('/diagnostics') > 0
                 and self.node.count_publishers('joint_trajectory') > 0)
 
-    def send(self, pair_id, stamp_sec, invalid=None):
-        """Send pair ``pair_id``; ``invalid`` is None, 'nan' or 'frame'."""
+    def send(self, pair_id, stamp_sec, stream='mixed', invalid=None):
+        """
+        Send pair ``pair_id``; return (topic, outcome).
+
+        ``invalid`` is None, 'nan' or 'frame'. topic: 'pick_place' or 'two_topic'; outcome:
+        'sent', 'refused' (nothing of the pair reached DDS) or 'place_refused' (its pick
+        did).
+        """
         pick, place = pick_of(pair_id), place_of(pair_id)
         if invalid == 'nan':
             place[2] = math.nan
         frame = 'not_' + FRAME if invalid == 'frame' else FRAME
-        if pair_id % 2 == 0:
+        if stream == 'pick_place' or (stream == 'mixed' and pair_id % 2 == 0):
             message = PoseArray()
             message.header.frame_id = frame
             message.header.stamp.sec = stamp_sec
             message.poses = [_pose(pick), _pose(place)]
-            self.pick_place.publish(message)
-            return 'pick_place'
-        for publisher, position in ((self.pick_pose, pick), (self.place_pose, place)):
+            return 'pick_place', 'sent' if publish(self.pick_place, message) else 'refused'
+        for publisher, position, refused in ((self.pick_pose, pick, 'refused'),
+                                             (self.place_pose, place, 'place_refused')):
             message = PoseStamped()
             message.header.frame_id = frame
             message.header.stamp.sec = stamp_sec  # unique per pair: 'stamp' pairing
             message.pose = _pose(position)
-            publisher.publish(message)
-        return 'pick_pose+place_pose'
+            if not publish(publisher, message):
+                return 'two_topic', refused
+        return 'two_topic', 'sent'
 
     def close(self):
         """Shut this process's ROS side down."""
         rclpy.try_shutdown(context=self.context)
         self._spinner.join(2.0)
         self.node.destroy_node()
+
+
+def publish(publisher, message):
+    """
+    Publish; return False if DDS refused the message (back-pressure), else True.
+
+    A RELIABLE/KEEP_ALL writer whose history is full (the node has not read what it holds)
+    blocks up to its max_blocking_time (Fast DDS: 100 ms) and then fails: rclpy raises
+    RCLError, a RuntimeError, 'cannot publish data'. The message was not sent.
+    """
+    try:
+        publisher.publish(message)
+    except RuntimeError:
+        return False
+    return True
 
 
 def start_node(log_path, env):
@@ -235,9 +272,14 @@ def _status_pair(status, values):
 
 
 def check_trajectories(trajectories, sent_ids, geometry):
-    """Return (pair ids released, mis-pairings, invalid trajectories) of the trajectories."""
+    """
+    Return (released, mis-pairings, invalid trajectories) of the trajectories.
+
+    released: (pair id, arrival time) of each trajectory that joins a sent pair's pick and
+    place.
+    """
     released, mispaired, invalid = [], [], []
-    for _, message in trajectories:
+    for arrival, message in trajectories:
         try:
             data = joint_trajectory_data(message)
             validate_jtc(data)
@@ -251,16 +293,18 @@ def check_trajectories(trajectories, sent_ids, geometry):
                 or np.min(np.linalg.norm(tcp - pick_of(pair_id), axis=1)) > PICK_TOLERANCE):
             mispaired.append({'place': tcp[-1].tolist(), 'nearest_pair': pair_id})
             continue
-        released.append(pair_id)
+        released.append((pair_id, arrival))
     return released, mispaired, invalid
 
 
 def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, out=None,
-        drain_timeout=DRAIN_TIMEOUT):
+        drain_timeout=DRAIN_TIMEOUT, stream='mixed'):
     """
     Flood a fresh node and return the report (a dict); see the module docstring.
 
-    ``out`` (a file) receives progress lines, e.g. RSS samples; None for silence.
+    Pairs are offered at ``rate`` for ``seconds`` (wall time): a pair not yet offered when
+    the time is up (the sender was slowed by refusals) is not sent. ``out`` (a file)
+    receives progress lines, e.g. RSS samples; None for silence.
     """
     domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0'))
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
@@ -281,43 +325,51 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
             time.sleep(0.05)
         time.sleep(0.5)  # discovery is matched both ways by now, give DDS a moment more
         rss = [(0.0, resident_kib(process.pid))]
-        total = int(round(rate * seconds))
-        sent, invalid = {}, {}
+        offered = int(round(rate * seconds))
+        sent, sent_at, invalid = {}, {}, {}
         started = time.monotonic()
         next_sample = started + rss_every
-        for pair_id in range(total):
+        for pair_id in range(offered):
             due = started + pair_id / rate
             now = time.monotonic()
+            if now >= started + seconds:
+                break  # slowed down by refusals: the time is up
             if due > now:
                 time.sleep(due - now)
             kind = None
             if rng.uniform() < invalid_share:
                 kind = 'nan' if rng.uniform() < 0.5 else 'frame'
                 invalid[pair_id] = kind
-            sent[pair_id] = recorder.send(pair_id, 1_000_000 + pair_id, kind)
+            sent[pair_id] = recorder.send(pair_id, 1_000_000 + pair_id, stream, kind)
+            sent_at[pair_id] = time.monotonic()
             if now >= next_sample:
                 rss.append((now - started, resident_kib(process.pid)))
                 next_sample += rss_every
                 if out is not None:
-                    print(json.dumps({'t': round(now - started, 1), 'sent': pair_id + 1,
-                                      'rss_kib': rss[-1][1]}), file=out, flush=True)
+                    print(json.dumps({'t': round(now - started, 1), 'offered': pair_id + 1,
+                                      'refused': _refused(sent), 'rss_kib': rss[-1][1]}),
+                          file=out, flush=True)
         send_time = time.monotonic() - started
-        # Drain: wait until the node has counted every pair and its queue is empty.
+        expected_pairs = sum(outcome == 'sent' for _, outcome in sent.values())
+        # Drain: wait until the node has counted every pair sent and its queue is empty.
         drained = False
         deadline = time.monotonic() + drain_timeout
         while time.monotonic() < deadline and process.poll() is None:
             latest = _latest_counts(recorder.statuses)
-            if latest and latest.get('queue_length') == '0' and time.monotonic() > (
-                    recorder.statuses[-1][0] + 2.0):
+            if (latest and int(latest['pairs_received']) >= expected_pairs
+                    and latest.get('queue_length') == '0'
+                    and time.monotonic() > recorder.statuses[-1][0] + 2.0):
                 drained = True
                 break
             time.sleep(0.2)
+        drain_time = time.monotonic() - started - send_time
         rss.append((time.monotonic() - started, resident_kib(process.pid)))
         # The last pair: does the node still answer, and how fast?
-        probe_id = total
+        probe_id = len(sent)
         trajectories_before = len(recorder.trajectories)
         probe_sent = time.monotonic()
-        sent[probe_id] = recorder.send(probe_id, 1_000_000 + probe_id)
+        sent[probe_id] = recorder.send(probe_id, 1_000_000 + probe_id, stream)
+        sent_at[probe_id] = time.monotonic()
         answer = None
         while time.monotonic() < probe_sent + ANSWER_TIMEOUT and answer is None:
             for arrival, message in recorder.trajectories[trajectories_before:]:
@@ -337,8 +389,19 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
             process.kill()
             exit_code = 'killed'
         recorder.close()
-    return _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, answer,
-                   drained, rate, seconds, log_path)
+    report = _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, answer,
+                     log_path)
+    report.update(stream=stream, rate_offered=rate, seconds=seconds, pairs_offered=offered,
+                  send_time_s=round(send_time, 2), drained=drained,
+                  drain_time_s=round(drain_time, 1),
+                  rate_achieved=round((len(sent) - 1) / send_time, 1))
+    report['ok'] = report['ok'] and drained
+    return report
+
+
+def _refused(sent):
+    """Return how many pairs of ``sent`` were refused, in whole or their place."""
+    return sum(outcome != 'sent' for _, outcome in sent.values())
 
 
 def _latest_counts(statuses):
@@ -352,15 +415,52 @@ def _latest_counts(statuses):
     return best
 
 
-def _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, answer,
-            drained, rate, seconds, log_path):
+def sender_ledger(sent):
+    """
+    Return what this process did with its pairs: per topic, sent and refused.
+
+    'pairs': pick_place and place_pose messages (one per pair); 'picks': pick_pose messages.
+    """
+    ledger = {'pairs_attempted': len(sent), 'pairs_sent': 0, 'pairs_refused': 0,
+              'picks_attempted': 0, 'picks_sent': 0, 'picks_refused': 0}
+    for topic, outcome in sent.values():
+        ledger['pairs_sent' if outcome == 'sent' else 'pairs_refused'] += 1
+        if topic == 'two_topic':
+            ledger['picks_attempted'] += 1
+            ledger['picks_refused' if outcome == 'refused' else 'picks_sent'] += 1
+    return ledger
+
+
+def node_ledger(values):
+    """Return the node's pair and pick counters from a status's values, and the identities."""
+    counts = {name: int(value) for name, value in values.items()
+              if name.startswith(('pairs_', 'picks_'))}
+    by_kind = {outcome: sum(count for name, count in counts.items()
+                            if name.startswith(f'pairs_{outcome}_'))
+               for outcome in ('rejected', 'dropped')}
+    pairs_add_up = (counts.get('pairs_received', 0) == sum(
+        counts.get(f'pairs_{name}', 0) for name in PAIR_OUTCOMES)
+        and by_kind['rejected'] == counts.get('pairs_rejected', 0)
+        and by_kind['dropped'] == counts.get('pairs_dropped', 0))
+    picks_add_up = counts.get('picks_received', 0) == sum(
+        counts.get(f'picks_{name}', 0) for name in PICK_OUTCOMES)
+    return counts, pairs_add_up, picks_add_up
+
+
+def _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, answer,
+            log_path):
     geometry = PlannerConfig().geometry
+    valid_ids = {pair_id for pair_id, (_, outcome) in sent.items()
+                 if outcome == 'sent' and pair_id not in invalid}
     released, mispaired, invalid_trajectories = check_trajectories(
-        recorder.trajectories, set(sent) - set(invalid), geometry)
+        recorder.trajectories, valid_ids, geometry)
+    send_to_trajectory = [arrival - sent_at[pair_id] for pair_id, arrival in released]
+    released = [pair_id for pair_id, _ in released]
     kinds, pairs_with_status, queue_lengths = {}, set(), []
     plan_times, plan_latency, publish_latency = [], [], []
-    counters = None
-    for _, status in recorder.statuses:
+    counters, all_read_at = None, None
+    expected_pairs = sum(outcome == 'sent' for _, outcome in sent.values())
+    for arrival, status in recorder.statuses:
         values = _values(status)
         kind = values.get('kind', status.message if status.message in (
             'planned', 'released') else 'other')
@@ -370,20 +470,21 @@ def _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, an
             pairs_with_status.add(pair)
         if 'queue_length' in values:
             queue_lengths.append(int(values['queue_length']))
-        if 'pairs_received' in values and (counters is None or int(
-                values['pairs_received']) >= int(counters['pairs_received'])):
-            counters = values
+        if 'pairs_received' in values:
+            received = int(values['pairs_received'])
+            if counters is None or received >= int(counters['pairs_received']):
+                counters = values
+            if all_read_at is None and received >= expected_pairs - 1:  # all but the probe
+                all_read_at = arrival - started
         if status.message == 'planned':
             plan_times.append(float(values['plan_time']))
             plan_latency.append(float(values['receive_to_plan_latency']))
         elif status.message == 'released':
             publish_latency.append(float(values['receive_to_publish_latency']))
-    counts = {name[len('pairs_'):]: int(value) for name, value in (counters or {}).items()
-              if name.startswith('pairs_')}
-    received = counts.get('received', 0)
-    accounted = sum(counts.get(name, 0) for name in
-                    ('released', 'rejected', 'dropped', 'queued', 'releasing'))
-    without_status = sorted(set(range(1, received + 1)) - pairs_with_status)
+    counts, pairs_add_up, picks_add_up = node_ledger(counters or {})
+    sender = sender_ledger(sent)
+    without_status = sorted(set(range(1, counts.get('pairs_received', 0) + 1))
+                            - pairs_with_status)
     rss_values = [value for _, value in rss if value is not None]
 
     def ms(values):
@@ -391,21 +492,23 @@ def _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, an
                 'max': _ms(max(values) if values else None), 'n': len(values)}
 
     report = {
-        'rate_requested': rate, 'seconds_requested': seconds,
-        'pairs_sent': len(sent), 'flood_pairs': total, 'invalid_sent': len(invalid),
-        'send_time_s': round(send_time, 2), 'rate_achieved': round(total / send_time, 1),
-        'node_counts': counts,
-        'lost_before_node': len(sent) - received,
-        'accounting_adds_up': received == accounted,
+        'sender': sender, 'invalid_sent': sum(
+            sent[pair_id][1] == 'sent' for pair_id in invalid),
+        'node': counts,
+        # Sent = refused at the sender + received by the node, for both kinds of message.
+        'pairs_lost_in_transport': sender['pairs_sent'] - counts.get('pairs_received', 0),
+        'picks_lost_in_transport': sender['picks_sent'] - counts.get('picks_received', 0),
+        'pairs_add_up': pairs_add_up, 'picks_add_up': picks_add_up,
         'pairs_without_status': len(without_status),
         'pairs_without_status_first': without_status[:10],
+        'node_read_all_pairs_at_s': None if all_read_at is None else round(all_read_at, 1),
         'status_kinds': kinds, 'statuses_recorded': len(recorder.statuses),
         'trajectories': len(recorder.trajectories), 'trajectory_pairs': len(released),
         'duplicate_trajectories': len(released) - len(set(released)),
         'mispaired': len(mispaired), 'mispaired_first': mispaired[:5],
         'invalid_trajectories': len(invalid_trajectories),
         'max_queue_length': max(queue_lengths) if queue_lengths else None,
-        'drained': drained, 'alive_after': alive, 'exit_code': exit_code,
+        'alive_after': alive, 'exit_code': exit_code,
         'answer_after_flood_s': None if answer is None else round(answer, 3),
         'rss_kib': {'start': rss_values[0] if rss_values else None,
                     'end': rss_values[-1] if rss_values else None,
@@ -415,11 +518,13 @@ def _report(recorder, sent, invalid, rss, send_time, total, alive, exit_code, an
         'plan_time_ms': ms(plan_times),
         'receive_to_plan_latency_ms': ms(plan_latency),
         'receive_to_publish_latency_ms': ms(publish_latency),
+        'send_to_trajectory_ms': ms(send_to_trajectory),
         'node_log': log_path,
     }
     report['ok'] = bool(alive and answer is not None and not mispaired
-                        and not invalid_trajectories and report['accounting_adds_up']
-                        and not without_status and report['lost_before_node'] == 0)
+                        and not invalid_trajectories and pairs_add_up and picks_add_up
+                        and not without_status and report['pairs_lost_in_transport'] == 0
+                        and report['picks_lost_in_transport'] == 0)
     return report
 
 
@@ -444,10 +549,12 @@ def main():
     parser.add_argument('--invalid', type=float, default=0.02,
                         help='share of invalid pairs (NaN place or wrong frame)')
     parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--stream', choices=STREAMS, default='mixed',
+                        help='pick_place messages, pick_pose + place_pose, or both')
     parser.add_argument('--log-dir', help="where the node's log goes (default: a temp dir)")
     options = parser.parse_args()
     report = run(options.rate, options.seconds, options.seed, invalid_share=options.invalid,
-                 log_dir=options.log_dir, out=sys.stderr)
+                 log_dir=options.log_dir, out=sys.stderr, stream=options.stream)
     print(json.dumps(report, indent=1))
     return 0 if report['ok'] else 1
 

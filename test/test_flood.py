@@ -24,6 +24,7 @@ import sys
 
 import numpy as np
 import pytest
+from rclpy.impl.implementation_singleton import rclpy_implementation
 
 ROS_DOMAIN_OFFSET = 5  # see conftest.py
 
@@ -36,6 +37,58 @@ def test_pair_ids_survive_the_position_encoding():
     ids = np.arange(0, 61_000, 7)
     assert all(flood.pair_of_place(flood.place_of(pair_id)) == pair_id for pair_id in ids)
     assert np.linalg.norm(flood.pick_of(1) - flood.pick_of(0)) > 50 * flood.PICK_TOLERANCE
+
+
+class RefusingPublisher:
+    """A publisher whose DDS history is full: publish() raises as rclpy's does."""
+
+    def __init__(self, refuse):
+        self.refuse = refuse
+        self.published = []
+
+    def publish(self, message):
+        if self.refuse:
+            raise rclpy_implementation.RCLError('cannot publish data')
+        self.published.append(message)
+
+
+def sender(pick_place=False, pick=False, place=False):
+    """Return a flood Recorder without ROS whose publishers refuse as asked."""
+    recorder = object.__new__(flood.Recorder)
+    recorder.pick_place = RefusingPublisher(pick_place)
+    recorder.pick_pose = RefusingPublisher(pick)
+    recorder.place_pose = RefusingPublisher(place)
+    return recorder
+
+
+def test_a_refused_publish_is_counted_as_refused_and_its_pair_not_sent_on():
+    assert sender(pick_place=True).send(0, 1, 'pick_place') == ('pick_place', 'refused')
+    assert sender().send(0, 1, 'pick_place') == ('pick_place', 'sent')
+    refused_pick = sender(pick=True)
+    assert refused_pick.send(1, 1, 'two_topic') == ('two_topic', 'refused')
+    assert refused_pick.place_pose.published == [], 'no place for a pick that was refused'
+    refused_place = sender(place=True)
+    assert refused_place.send(1, 1, 'two_topic') == ('two_topic', 'place_refused')
+    assert len(refused_place.pick_pose.published) == 1
+    ledger = flood.sender_ledger({0: ('pick_place', 'refused'), 1: ('two_topic', 'refused'),
+                                  2: ('two_topic', 'place_refused'), 3: ('two_topic', 'sent'),
+                                  4: ('pick_place', 'sent')})
+    assert ledger == {'pairs_attempted': 5, 'pairs_sent': 2, 'pairs_refused': 3,
+                      'picks_attempted': 3, 'picks_sent': 2, 'picks_refused': 1}
+
+
+def test_the_node_ledger_adds_up_only_when_every_message_has_one_outcome():
+    values = {'pairs_received': '7', 'pairs_released': '2', 'pairs_rejected': '4',
+              'pairs_rejected_unpaired': '1', 'pairs_rejected_queue_full': '3',
+              'pairs_dropped': '1', 'pairs_dropped_cleared': '1', 'pairs_queued': '0',
+              'pairs_releasing': '0', 'picks_received': '3', 'picks_paired': '1',
+              'picks_pending': '1', 'picks_evicted': '1', 'queue_length': '0'}
+    counts, pairs_add_up, picks_add_up = flood.node_ledger(values)
+    assert counts['pairs_rejected_queue_full'] == 3 and 'queue_length' not in counts
+    assert pairs_add_up and picks_add_up
+    assert not flood.node_ledger({**values, 'pairs_received': '8'})[1]
+    assert not flood.node_ledger({**values, 'pairs_rejected_unpaired': '2'})[1]
+    assert not flood.node_ledger({**values, 'picks_received': '4'})[2]
 
 
 @pytest.fixture(scope='module')
@@ -66,12 +119,15 @@ def test_no_place_is_paired_with_another_pick(report):
     assert report['duplicate_trajectories'] == 0
 
 
-def test_every_pair_is_accounted_for(report):
-    counts = report['node_counts']
-    assert report['lost_before_node'] == 0
-    assert counts['received'] == report['pairs_sent']
-    assert report['accounting_adds_up'], counts
+def test_every_message_sent_is_refused_or_received_and_accounted_for(report):
+    sender, node = report['sender'], report['node']
+    assert report['drained']
+    assert report['pairs_lost_in_transport'] == 0 and report['picks_lost_in_transport'] == 0
+    assert node['pairs_received'] == sender['pairs_sent']
+    assert node['picks_received'] == sender['picks_sent']
+    assert sender['pairs_sent'] + sender['pairs_refused'] == sender['pairs_attempted']
+    assert report['pairs_add_up'] and report['picks_add_up'], node
     assert report['pairs_without_status'] == 0, report['pairs_without_status_first']
     # Overloaded: the queue was full and said so, and never grew past its depth.
-    assert report['status_kinds'].get('queue_full', 0) > 0
+    assert node.get('pairs_rejected_queue_full', 0) > 0
     assert report['max_queue_length'] <= 10

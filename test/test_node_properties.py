@@ -178,6 +178,7 @@ def _change_parameter(node, change):
 @given(sequence=steps)
 def test_any_input_is_counted_answered_and_leaves_the_node_serving(node, sequence):
     received = node.sequencer.counts()['received']
+    picks_received = node._pairing.counts()['received']
     published = len(node._diagnostics_publisher.messages)
     pairs = 0
     for topic, item in sequence:
@@ -193,15 +194,22 @@ def test_any_input_is_counted_answered_and_leaves_the_node_serving(node, sequenc
     assert counts['received'] == received + pairs
     assert counts['received'] == sum(counts[name] for name in (
         'released', 'rejected', 'dropped', 'queued', 'releasing'))
+    # Each pick_pose message is counted once too, and ends in exactly one outcome.
+    picks = node._pairing.counts()
+    assert picks['received'] == picks_received + sum(
+        topic == 'pick_pose' for topic, _ in sequence)
+    assert picks['received'] == sum(picks[name] for name in (
+        'paired', 'pending', 'invalid', 'replaced', 'evicted', 'cleared'))
     assert all(worker.is_alive() for worker in node._workers)
     for array in node._diagnostics_publisher.messages[published:]:
         for status in array.status:
             if status.level != DiagnosticStatus.OK:
                 kind = values_of(status).get('kind')
                 assert kind not in (None, '', 'internal'), status
-                # A rejection says what was expected; 'pick_replaced' only warns of a pick
-                # that will never be paired (its place, if any, is rejected as unpaired).
-                if kind != 'pick_replaced':
+                # A rejection says what was expected; pick_replaced, pick_evicted and
+                # pick_cleared only warn of a pick that will never be paired (its place, if
+                # any, is rejected as unpaired).
+                if not kind.startswith('pick_'):
                     assert ': expected ' in status.message, status.message
 
 

@@ -63,9 +63,13 @@ def motion_of(request, start, duration=0.5):
 
 
 def added_up(counts):
-    """Return whether every pair received is accounted for exactly once."""
-    return counts['received'] == (counts['released'] + counts['rejected'] + counts['dropped']
-                                  + counts['queued'] + counts['releasing'])
+    """Return whether every pair received is accounted for exactly once, each kind too."""
+    by_kind = {outcome: sum(count for name, count in counts.items()
+                            if name.startswith(f'{outcome}_'))
+               for outcome in ('rejected', 'dropped')}
+    return (counts['received'] == (counts['released'] + counts['rejected'] + counts['dropped']
+                                   + counts['queued'] + counts['releasing'])
+            and by_kind == {'rejected': counts['rejected'], 'dropped': counts['dropped']})
 
 
 @pytest.fixture
@@ -88,31 +92,52 @@ def plan_next(sequencer, duration=0.5):
 
 # --- pairing -----------------------------------------------------------------------------
 
+def pick_ledger_adds_up(counts):
+    """Return True if every pick counted as received ended in exactly one outcome."""
+    return counts['received'] == sum(counts[name] for name in (
+        'paired', 'pending', 'invalid', 'replaced', 'evicted', 'cleared'))
+
+
 def test_stamp_pairing_pairs_identical_stamps_and_never_another_pick():
     pairing = PosePairing()
-    assert pairing.add_pick((1, 0), 'a', 'stamp', 10) is None
-    assert pairing.add_pick((2, 0), 'b', 'stamp', 10) is None
+    pairing.add_pick((1, 0), 'a', 'stamp', 10)
+    pairing.add_pick((2, 0), 'b', 'stamp', 10)
+    assert pairing.take_notices() == []
     # The place of stamp 1 was lost: the place of stamp 2 still gets pick b.
     assert pairing.take_pick((2, 0), 'stamp') == 'b'
     with pytest.raises(UnpairedPlaceError, match='stamp'):
         pairing.take_pick((3, 0), 'stamp')
     assert len(pairing) == 1
-    assert 'queue full' in pairing.add_pick((4, 0), 'c', 'stamp', 1)
+    pairing.add_pick((4, 0), 'c', 'stamp', 1)
+    [(kind, text)] = pairing.take_notices()
+    assert kind == 'pick_evicted' and 'queue full' in text and '(1, 0)' in text
     with pytest.raises(UnpairedPlaceError):
-        pairing.take_pick((1, 0), 'stamp')  # dropped, with a warning, when the queue was full
+        pairing.take_pick((1, 0), 'stamp')  # evicted, with a notice, when the queue was full
     assert pairing.take_pick((4, 0), 'stamp') == 'c'
+    counts = pairing.counts()
+    assert (counts['received'], counts['paired'], counts['evicted'], counts['pending']) == (
+        3, 2, 1, 0)
+    assert pick_ledger_adds_up(counts)
 
 
 def test_sequence_pairing_takes_the_pending_pick_and_a_mode_change_clears():
     pairing = PosePairing()
-    assert pairing.add_pick((1, 0), 'a', 'sequence', 10) is None
-    assert 'replaced' in pairing.add_pick((2, 0), 'b', 'sequence', 10)
+    pairing.add_pick((1, 0), 'a', 'sequence', 10)
+    pairing.add_pick((2, 0), 'b', 'sequence', 10)
+    assert [kind for kind, _ in pairing.take_notices()] == ['pick_replaced']
     assert pairing.take_pick((9, 0), 'sequence') == 'b'
     with pytest.raises(UnpairedPlaceError, match='pending'):
         pairing.take_pick((9, 0), 'sequence')
     pairing.add_pick((1, 0), 'a', 'sequence', 10)
-    pairing.add_pick((1, 0), 'x', 'stamp', 10)  # the sequence pick is dropped
+    pairing.add_pick((1, 0), 'x', 'stamp', 10)  # the sequence pick is dropped, with a notice
+    [(kind, text)] = pairing.take_notices()
+    assert kind == 'pick_cleared' and 'sequence to stamp' in text
     assert len(pairing) == 1 and pairing.take_pick((1, 0), 'stamp') == 'x'
+    pairing.reject_pick()
+    counts = pairing.counts()
+    assert (counts['replaced'], counts['cleared'], counts['invalid'], counts['paired']) == (
+        1, 1, 1, 2)
+    assert pick_ledger_adds_up(counts)
 
 
 # --- the queue ---------------------------------------------------------------------------
@@ -165,13 +190,14 @@ def test_the_tail_is_the_running_motion_while_it_runs_and_the_robot_after(sequen
     clock.now += 0.3
     request, start = sequencer.take_for_planning()
     assert np.array_equal(start, PLACE), 'the running motion ends at the place'
-    sequencer.plan_failed()
+    sequencer.plan_failed('unreachable')
     sequencer.submit(PICK, PLACE, 'place_pose')
     clock.now += 0.3  # the first motion has ended
     request, start = sequencer.take_for_planning()
     assert start is None
     counts = sequencer.counts()
     assert (counts['rejected'], counts['planned'], counts['released']) == (1, 1, 1)
+    assert counts['rejected_unreachable'] == 1 and added_up(counts)
 
 
 @pytest.mark.parametrize('header_stamp', ['zero', 'ahead'])
@@ -254,9 +280,10 @@ def test_clear_drops_waiting_planning_and_held_pairs_but_not_the_running_one(clo
     sequencer.submit(PICK, PLACE, 'pick_place')
     sequencer.take_for_planning()
     assert sequencer.clear() == [6]
-    assert not sequencer.plan_failed()
+    assert not sequencer.plan_failed('unreachable')
     counts = sequencer.counts()
     assert (counts['dropped'], counts['rejected']) == (5, 0) and added_up(counts)
+    assert counts['dropped_cleared'] == 5
 
 
 def test_a_motion_that_fails_at_release_is_dropped_and_counted(sequencer, clock):
@@ -264,9 +291,10 @@ def test_a_motion_that_fails_at_release_is_dropped_and_counted(sequencer, clock)
     plan_next(sequencer)
     assert sequencer.take_for_release() is not None
     assert sequencer.counts()['releasing'] == 1
-    sequencer.release_failed()
+    sequencer.release_failed('off_trajectory')
     counts = sequencer.counts()
     assert (counts['dropped'], counts['releasing']) == (1, 0) and added_up(counts)
+    assert counts['dropped_off_trajectory'] == 1
 
 
 def test_release_timing_rejects_an_unknown_stamp_mode():

@@ -40,7 +40,7 @@ injected so the logic is tested with a fake one. :class:`PosePairing` pairs pick
 arriving on separate topics.
 """
 
-from collections import deque, OrderedDict
+from collections import Counter, deque, OrderedDict
 from dataclasses import dataclass, field, replace
 import threading
 import time
@@ -58,6 +58,8 @@ PAIRING_MODES = SETTING_BY_NAME['pairing'].choices
 HEADER_STAMPS = SETTING_BY_NAME['header_stamp'].choices
 # What the node did with pairs; see Sequencer.counts.
 COUNTERS = ('received', 'planned', 'released', 'rejected', 'dropped')
+# What became of pick_pose messages; see PosePairing.counts.
+PICK_COUNTERS = ('received', 'paired', 'invalid', 'replaced', 'evicted', 'cleared')
 # Samples of the running trajectory over the window of its uncertain start when a joint state
 # measured during it is compared with where it should be (0.06 ms apart for a 2 ms window).
 _TRACK_SAMPLES = 33
@@ -77,57 +79,93 @@ class QueueFullError(EllipathError):
 
 class PosePairing:
     """
-    Pick positions waiting for their place, at most ``depth`` of them.
+    Pick positions waiting for their place, at most ``depth`` of them, and a ledger of picks.
 
     In ``stamp`` mode a place pairs with the pick of identical stamp (any hashable key, the
     node passes ``(sec, nanosec)``); a lost message then leaves an unpaired pick or place and
     never joins a place with another pick. In ``sequence`` mode a place pairs with the
     pending pick and a second pick replaces the first, which mis-pairs when a place is lost.
     Not thread-safe: the node uses it from one mutually exclusive callback group only.
-    Pending picks are dropped when the pairing mode changes.
+
+    Every pick counted as received ends in exactly one of: paired, pending, invalid (see
+    :meth:`reject_pick`), replaced (a pick of the same key came), evicted (``depth`` picks
+    were waiting: the oldest goes) or cleared (the pairing mode changed). Each pick that is
+    dropped leaves a notice (kind, text) for the caller to report, see :meth:`take_notices`.
     """
 
     def __init__(self):
         self._pending = OrderedDict()
         self._mode = PAIRING_MODES[0]
+        self._counts = dict.fromkeys(PICK_COUNTERS, 0)
+        self._notices = []
 
     def __len__(self):
         """Return the number of pending picks."""
         return len(self._pending)
 
+    def counts(self):
+        """
+        Return the pick ledger as a dict (``pending`` included).
+
+        ``received`` = ``paired`` + ``pending`` + ``invalid`` + ``replaced`` + ``evicted`` +
+        ``cleared``.
+        """
+        counts = dict(self._counts)
+        counts['pending'] = len(self._pending)
+        return counts
+
+    def take_notices(self):
+        """Return the (kind, text) of each pick dropped since the last call, oldest first."""
+        notices, self._notices = self._notices, []
+        return notices
+
+    def _drop(self, kind, text):
+        self._counts[kind] += 1
+        self._notices.append((f'pick_{kind}', text))
+
     def _key(self, stamp, mode):
         """Return the key pairing a pick and a place in ``mode``."""
         if mode != self._mode:
+            for key in self._pending:
+                self._drop('cleared', f'pick_pose (stamp {key}) dropped: pairing changed from '
+                           f'{self._mode} to {mode}')
             self._pending.clear()
             self._mode = mode
         return None if mode == 'sequence' else stamp
 
+    def reject_pick(self):
+        """Count a pick_pose that failed validation (the caller reports why)."""
+        self._counts['received'] += 1
+        self._counts['invalid'] += 1
+
     def add_pick(self, stamp, position, mode, depth):
-        """Store a pick; return a warning if it displaced another pick, else None."""
+        """Store a pick; a pick it displaces leaves a notice (see :meth:`take_notices`)."""
         key = self._key(stamp, mode)
-        warning = None
+        self._counts['received'] += 1
         if key in self._pending:
             del self._pending[key]
-            warning = ('pick_pose replaced the pending pick, which had no place_pose yet'
+            self._drop('replaced',
+                       'pick_pose replaced the pending pick, which had no place_pose yet'
                        if key is None else
                        f'pick_pose replaced the pending pick of the same stamp {key}')
         elif len(self._pending) >= depth:
             dropped, _ = self._pending.popitem(last=False)
-            warning = (f'pick queue full ({depth} waiting): dropped the oldest pick '
-                       f'(stamp {dropped})')
+            self._drop('evicted', f'pick queue full ({depth} waiting): dropped the oldest '
+                       f'pick (stamp {dropped})')
         self._pending[key] = position
-        return warning
 
     def take_pick(self, stamp, mode):
         """Remove and return the pick position paired with a place, or raise."""
         key = self._key(stamp, mode)
         try:
-            return self._pending.pop(key)
+            position = self._pending.pop(key)
         except KeyError:
             wanted = 'a pending pick_pose' if key is None else f'a pick_pose with stamp {key}'
             raise UnpairedPlaceError(
                 f'place_pose: expected {wanted} to pair with (pairing {mode}), got none'
             ) from None
+        self._counts['paired'] += 1
+        return position
 
 
 @dataclass(frozen=True)
@@ -345,6 +383,7 @@ class Sequencer:
         self._numbers = 0
         self._stopped = False
         self._counts = dict.fromkeys(COUNTERS, 0)
+        self._kinds = Counter()  # (outcome, kind): pairs rejected or dropped, by kind
 
     # --- state ------------------------------------------------------------------------------
 
@@ -376,12 +415,21 @@ class Sequencer:
         ``received`` = ``released`` + ``rejected`` + ``dropped`` + ``queued`` (waiting, being
         planned or held) + ``releasing`` (taken for release, being checked and published).
         ``planned`` counts successful plans (a pair re-planned at release counts once).
+        ``rejected_<kind>`` and ``dropped_<kind>`` split ``rejected`` and ``dropped`` by the
+        kind of their status (``queue_full``, ``unpaired``, ``cleared``, ...).
         """
         with self._condition:
             counts = dict(self._counts)
             counts.update(queued=self._length(), held=len(self._held),
                           releasing=int(self._releasing is not None))
+            counts.update((f'{outcome}_{kind}', count)
+                          for (outcome, kind), count in sorted(self._kinds.items()))
         return counts
+
+    def _count(self, outcome, kind, number=1):
+        """Count ``number`` pairs rejected or dropped as ``kind``; the lock is held."""
+        self._counts[outcome] += number
+        self._kinds[outcome, kind] += number
 
     def running(self, now=None):
         """Return the last release if its trajectory may still run at ``now``, else None."""
@@ -429,7 +477,7 @@ class Sequencer:
             self._numbers += 1
             self._counts['received'] += 1
             if self._length() >= self.depth:
-                self._counts['rejected'] += 1
+                self._count('rejected', QueueFullError.kind)
                 raise QueueFullError(
                     f'pair {self._numbers}: expected room in the cycle queue, got '
                     f'{self._length()} pairs queued (queue_depth {self.depth}): the newest '
@@ -441,17 +489,18 @@ class Sequencer:
             self._condition.notify_all()
             return request
 
-    def reject(self):
+    def reject(self, kind='internal'):
         """
         Count a pair rejected before the queue (invalid, unpaired); return its number.
 
         So that every pair sent is accounted for, the caller counts each place_pose and each
         pick_place message as one pair, whether or not it could be paired and validated.
+        ``kind``: the kind of its status (the error's ``kind``).
         """
         with self._condition:
             self._numbers += 1
             self._counts['received'] += 1
-            self._counts['rejected'] += 1
+            self._count('rejected', kind)
             return self._numbers
 
     # --- planning ---------------------------------------------------------------------------
@@ -509,7 +558,7 @@ class Sequencer:
             self._planning = None
             self._counts['planned'] += 1
             if self._planning_cancelled or self._stopped:
-                self._counts['dropped'] += 1
+                self._count('dropped', 'cleared' if self._planning_cancelled else 'stopped')
                 self._condition.notify_all()
                 return None
             held = replace(motion, ready=self.clock())
@@ -517,9 +566,9 @@ class Sequencer:
             self._condition.notify_all()
             return held
 
-    def plan_failed(self):
+    def plan_failed(self, kind='internal'):
         """
-        Count the pair being planned as rejected (its plan failed); return True.
+        Count the pair being planned as rejected as ``kind`` (its plan failed); return True.
 
         Returns False, and counts it as dropped, when the queue was cleared while it was
         planned: the clear already reported it.
@@ -527,7 +576,10 @@ class Sequencer:
         with self._condition:
             self._planning = None
             cancelled = self._planning_cancelled or self._stopped
-            self._counts['dropped' if cancelled else 'rejected'] += 1
+            if cancelled:
+                self._count('dropped', 'cleared' if self._planning_cancelled else 'stopped')
+            else:
+                self._count('rejected', kind)
             self._condition.notify_all()
             return not cancelled
 
@@ -637,11 +689,11 @@ class Sequencer:
             self._condition.notify_all()
             return release
 
-    def release_failed(self):
-        """Count the motion taken for release as dropped (it could not be published)."""
+    def release_failed(self, kind='internal'):
+        """Count the motion taken for release as dropped as ``kind`` (not published)."""
         with self._condition:
             self._releasing = None
-            self._counts['dropped'] += 1
+            self._count('dropped', kind)
             self._condition.notify_all()
 
     # --- clearing and stopping --------------------------------------------------------------
@@ -659,7 +711,7 @@ class Sequencer:
         with self._condition:
             dropped = [request.number for request in self._waiting]
             dropped += [motion.request.number for motion in self._held]
-            self._counts['dropped'] += len(self._waiting) + len(self._held)
+            self._count('dropped', 'cleared', len(self._waiting) + len(self._held))
             self._waiting.clear()
             self._held.clear()
             if self._planning is not None and not self._planning_cancelled:

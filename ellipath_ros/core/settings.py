@@ -205,9 +205,9 @@ SETTINGS = (
          'ros', choices=('stamp', 'sequence')),
     _row('queue_depth', 'integer', 10, '',
          'Most pairs in the cycle queue (waiting to be planned, being planned and held; when '
-         'it is full the newest pair is rejected with a WARN status), most picks waiting for '
-         'their place, and depth of the published topics (the pose topics are read through '
-         'queues of 1000)', 'ros', low=1, high=1000, read_only=True),
+         'it is full the newest pair is rejected with a WARN status) and depth of the '
+         'published topics (the pose topics are read RELIABLE/KEEP_ALL, see '
+         'docs/reliability.md)', 'ros', low=1, high=1000, read_only=True),
     _row('header_stamp', 'string', 'ahead', '',
          "Trajectory header.stamp. Jazzy's joint_trajectory_controller replaces a running "
          'trajectory at its next cycle whatever the stamp, so each trajectory is published '
