@@ -22,8 +22,10 @@ from ellipath_ros.belt_demo import failures
 from ellipath_ros.belt_demo import format_belt_report
 from ellipath_ros.belt_demo import run_belt_scenario
 from ellipath_ros.cli import main
+from ellipath_ros.core import conveyor as conveyor_module
 from ellipath_ros.core.conveyor import (
-    Conveyor, FRAME_LIMIT_SHARE, FrameRamp, plan_belt_cycle, ramp_time)
+    _EarliestSearch, _Trial, Conveyor, FRAME_LIMIT_SHARE, FrameRamp, INTERCEPT_ITERATIONS,
+    INTERCEPT_RESOLUTION, plan_belt_cycle, ramp_time)
 from ellipath_ros.core.errors import InvalidInputError, MissedError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -162,6 +164,71 @@ def test_earliest_pick_is_earlier_when_the_object_is_closer():
     assert far.intercept.wait == 0.0 and plan_near.intercept.wait == 0.0
     # Waiting is never needed here, and a farther object takes longer to reach.
     assert far.intercept.pick_time > plan_near.intercept.pick_time
+
+
+def counted(monkeypatch, name):
+    """Count the calls of conveyor's ``name`` (a list holding the count)."""
+    calls = [0]
+    original = getattr(conveyor_module, name)
+
+    def counting(*args, **kwargs):
+        calls[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(conveyor_module, name, counting)
+    return calls
+
+
+def test_a_belt_plan_times_few_legs_and_searches_points_once_per_piece(monkeypatch):
+    timings = counted(monkeypatch, 'time_motion')
+    searches = counted(monkeypatch, '_joint_points')
+    for speed, degrees in BELTS[1:3]:
+        timings[0] = searches[0] = 0
+        velocity = belt(speed, degrees)
+        pick = -0.2 * velocity / speed + np.array([0.0, 0.0, -0.85])
+        plan_belt_cycle(START, pick, PLACE, CONFIG, Conveyor(velocity=velocity),
+                        pick_dwell=DWELL, start_time=0.02)
+        # The bracketing search it replaced timed 8 or 9 legs; points: approach, dwell,
+        # transfer, once each.
+        assert timings[0] <= 6
+        assert searches[0] == 3
+
+
+def search_smallest(value, start, speed):
+    """Run _EarliestSearch on ``value(lam)`` from ``start``; return (best lam, trials)."""
+    search = _EarliestSearch(speed)
+    lam, trials = start, 0
+    while lam is not None:
+        trials += 1
+        assert trials <= INTERCEPT_ITERATIONS
+        lam = search.propose(_Trial(lam, value(lam), 'leg', 0.0))
+    return search.best.lam, trials
+
+
+@pytest.mark.parametrize('speed', [0.1, 0.3, 0.5])
+def test_earliest_search_finds_the_smallest_feasible_target(speed):
+    # A smooth margin rising about 1/speed per metre, as a leg's: its root is found within
+    # the resolution in a few trials.
+    def smooth(lam):
+        return (lam - 0.1) / speed - 0.08 - 0.4 * (lam - 0.1) ** 2
+
+    root = 0.1 + 0.08 * speed
+    for _ in range(3):
+        root -= smooth(root) / (1.0 / speed - 0.8 * (root - 0.1))
+    best, trials = search_smallest(smooth, 0.1, speed)
+    assert root <= best <= root + INTERCEPT_RESOLUTION
+    assert trials <= 4
+
+    # A duration that jumps just past the root (the ellipse's angle rounded): the earliest
+    # feasible target is the jump, found within the resolution.
+    jump = root + 0.3 * INTERCEPT_RESOLUTION + 0.002
+    drop = 0.01 + (jump - root) / speed  # infeasible all the way to the jump
+
+    def jumping(lam):
+        return smooth(lam) - (drop if lam < jump else 0.0)
+
+    best, _ = search_smallest(jumping, 0.1, speed)
+    assert jump <= best <= jump + INTERCEPT_RESOLUTION
 
 
 @pytest.mark.parametrize('latch_along, start_time', [(0.25, 0.0), (0.0, 2.0)])
