@@ -14,10 +14,12 @@
 
 """Conveyor tracking: picks from a moving belt, checked on what JTC executes."""
 
+import argparse
 import functools
 import json
 import math
 
+from ellipath_ros import demo
 from ellipath_ros.belt_demo import failures
 from ellipath_ros.belt_demo import format_belt_report
 from ellipath_ros.belt_demo import run_belt_scenario
@@ -36,6 +38,7 @@ import pytest
 from test_executed import assert_within_limits
 from test_executed import dense_check
 
+ROS_DOMAIN_OFFSET = 39  # see conftest.py
 CONFIG = PlannerConfig()
 START = np.array([0.12, 0.18, -0.78])
 PLACE = np.array([0.15, 0.2, -0.8])
@@ -332,6 +335,29 @@ def test_belt_scenario_picks_on_the_object_and_reports_misses():
     assert all(miss['kind'] == 'missed' for miss in result['misses'])
     assert result['executed.max_tcp_to_object_at_pick'] <= ON_OBJECT
     assert 'picks/min' in format_belt_report(result)
+
+
+def test_belt_demo_through_the_node_picks_on_the_object_and_gives_every_outcome(
+        ros_domain_id, capsys):
+    # The node plans each object as it is latched, with its planning time on the timeline.
+    parser = argparse.ArgumentParser()
+    demo.add_arguments(parser)
+    args = parser.parse_args(['--belt', '--objects', '6', '--rate', '4', '--seed', '3',
+                              '--timeout', '10', '--domain-id', str(ros_domain_id)])
+    status = demo.run_demo(args)
+    output = capsys.readouterr().out
+    assert 'through ellipath_node over DDS' in output
+    outcomes = [line for line in output.splitlines() if line.startswith('object ')]
+    assert len(outcomes) == 6
+    picked = [line for line in outcomes if ': picked ' in line]
+    # Every object not picked carries the node's reason; a miss names by how much.
+    for line in outcomes:
+        assert ': picked ' in line or ': missed: ' in line and 'past the downstream' in line
+    assert picked, output
+    # The executed TCP on the object at every pick (JTC's quintic through FK).
+    for line in picked:
+        assert float(line.split('executed TCP to object ')[1].split()[0]) <= ON_OBJECT * 1e3
+    assert 'failed:' not in output and status == 0, output
 
 
 def test_cli_plot_draws_a_belt_cycle(tmp_path, capsys):

@@ -557,7 +557,7 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
                 trial.lam + speed * (trial.leg.duration - trial.midpoint)
                 > conveyor.window_downstream):
             # Even the best case is past the window: late by the time the robot needs more.
-            _raise_missed(trial.lam + speed * (trial.leg.duration - trial.leg.lowest),
+            _raise_missed(trial.lam + speed * (trial.leg.duration - trial.midpoint),
                           conveyor, speed)
         following = search.propose(trial)
         if following is None:
