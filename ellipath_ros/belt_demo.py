@@ -17,15 +17,25 @@
 
 Objects are latched by a camera 0.15 m upstream of the tracking window, at random across
 the belt and at random intervals, as a stream faster than the robot can take: some are
-necessarily missed. Each cycle is planned with the core (no ROS: the robot's timeline, not
-this machine's planning time, is what is measured) from where and when the previous one
-ends, and each trajectory is fed, stamped at its planned start, to the emulation of Jazzy's
-joint_trajectory_controller (``ellipath_ros.core.controller``, 1 kHz). The report says, all
-executed (JTC's quintic through the published points, through forward kinematics):
+necessarily missed. Two engines:
+
+* through the node (default, :func:`run_node_belt`): ``ellipath_node`` runs with the belt's
+  parameters, each object is published as one ``pick_place`` message when it is latched,
+  stamped with its latch time, and the node plans, reports misses and releases each pick
+  stamped at its planned start, over DDS on this host; its planning time is on the robot's
+  timeline, as in a cell;
+* ``--belt-core``: each cycle is planned with the core alone, from where and when the
+  previous one ends (no ROS, no planning latency).
+
+Either way each trajectory is fed, stamped at its start, at its arrival time, to the emulation
+of Jazzy's joint_trajectory_controller (``ellipath_ros.core.controller``, 1 kHz). The report
+says, all executed (JTC's quintic through the published points, through forward kinematics):
 picks/min and the miss rate, the TCP's distance to the object at each pick instant, its
-speed relative to the object during the pick dwell, and the peaks against the limits.
+speed relative to the object during the pick dwell, the peaks against the limits, and every
+object's outcome (picked, or the reason the node or the core gave).
 """
 
+from dataclasses import dataclass
 import math
 import os
 import sys
@@ -36,6 +46,7 @@ from ellipath_ros.core.conveyor import Conveyor
 from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import executed_peaks
+from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
@@ -60,14 +71,21 @@ DWELL_SAMPLES = 36
 SPEED_STEP = 1e-5
 # Time step of the figure's curves [s].
 FIGURE_STEP = 1e-3
+# Through the node: the first object is latched this long after the node and the cell have
+# met [s]; after the last trajectory's predicted end, strays have this long to show up [s].
+LEAD_IN = 0.5
+SETTLE = 0.2
 
 
 def add_belt_arguments(parser):
     """Add the belt scenario's options to the ``ellipath demo`` parser."""
     parser.add_argument('--belt', action='store_true',
-                        help='the belt scenario instead of the node demo: objects on a conveyor '
-                        'at --belt-speed, planned with the core and executed on the JTC '
-                        'emulation (no ROS)')
+                        help='the belt scenario instead of the static one: objects on a '
+                        'conveyor at --belt-speed, sent to the node as they are latched, '
+                        'executed on the JTC emulation')
+    parser.add_argument('--belt-core', action='store_true',
+                        help='with --belt: plan with the core alone (no ROS, no planning '
+                        'latency), as the robot timeline would be with instant plans')
     parser.add_argument('--belt-speed', type=float, default=0.3,
                         help='belt speed along +x [m/s] (default: %(default)s)')
     parser.add_argument('--objects', type=int, default=20,
@@ -86,24 +104,37 @@ def object_stream(count, rate, seed):
     return times, positions
 
 
+@dataclass(frozen=True, eq=False)
+class BeltPick:
+    """
+    One executed belt pick: the trajectory that picks an object, as the controller got it.
+
+    Times are on one clock [s]: the latch clock of the objects.
+    """
+
+    number: int  # the object's index in the stream
+    latch_time: float
+    latched: np.ndarray  # object position at latch_time [m], (3,)
+    start: float  # header.stamp: the trajectory's t = 0
+    arrival: float  # when the controller had the message
+    trajectory: JointTrajectoryData
+    pick_after_start: float  # planned pick instant, from the start
+    window_position: float  # [m] along the belt at the pick (planned)
+    wait: float  # [s] rest at the start before the approach (planned)
+
+
 def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
     """
-    Play the belt cell; return a JSON-ready dict of what was executed.
+    Play the belt cell with the core alone; return a JSON-ready dict of what was executed.
 
     Every figure is of the executed motion unless its key says ``planned``.
     """
     config = config or PlannerConfig()
     conveyor = Conveyor(velocity=np.array([speed, 0.0, 0.0]), window_upstream=WINDOW[0],
                         window_downstream=WINDOW[1])
-    velocity = conveyor.velocity
     latches, objects = object_stream(count, rate, seed)
     position, free_at = np.array(HOME), 0.0
-    emulator = JazzyJtcEmulator(config.joint_names, start_time=0.0,
-                                initial_positions=inverse_kinematics(position, config.geometry))
-    picks, misses, sent = [], [], []
-    worst = {'on_object': 0.0, 'relative_speed': 0.0}
-    peaks = dict.fromkeys(('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
-                           'joint_peak_accel'), 0.0)
+    picks, misses = [], []
     for number, (latch, pick) in enumerate(zip(latches, objects)):
         start = max(free_at, latch)
         place = np.array(PLACES[len(picks) % len(PLACES)])
@@ -116,56 +147,103 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
         trajectory = plan.joint_trajectory
         # Delivered before its stamp, inside the previous place dwell (or while idle): the
         # controller holds the robot at rest until the stamp, so it starts exactly then.
-        emulator.receive(trajectory, start, max(start - HANDOVER, emulator.time))
-        sent.append((start, trajectory))
-        offset = plan.intercept.pick_time - start
-        dwell = offset + np.linspace(0.0, DWELL, DWELL_SAMPLES)
+        arrival = max(start - HANDOVER, picks[-1].arrival if picks else 0.0)
+        picks.append(BeltPick(number, latch, pick, start, arrival, trajectory,
+                              plan.intercept.pick_time - start,
+                              plan.intercept.window_position, plan.intercept.wait))
+        position, free_at = plan.end_position, start + trajectory.duration
+    result = evaluate_belt_run(picks, misses, count, speed, config, HOME)
+    result['rate_per_s'] = rate
+    result['engine'] = 'core'
+    return result
+
+
+def evaluate_belt_run(picks, misses, count, speed, config, home):
+    """
+    Replay belt picks on the JTC emulation; return a JSON-ready dict of what was executed.
+
+    Parameters
+    ----------
+    picks : list of BeltPick
+        In the order the controller received them.
+    misses : list of dict
+        ``{'object', 'kind', 'reason'}`` of every object not picked.
+    count : int
+        Objects in the stream.
+    speed : float
+        Belt speed along +x [m/s].
+    config : PlannerConfig
+        The planner's settings (geometry, limits, joint names).
+    home : array_like
+        Where the robot rests before the first trajectory [m], (3,).
+
+    """
+    velocity = np.array([speed, 0.0, 0.0])
+    first = picks[0].arrival - 1.0 if picks else 0.0
+    emulator = JazzyJtcEmulator(config.joint_names, start_time=first,
+                                initial_positions=inverse_kinematics(np.asarray(home, float),
+                                                                     config.geometry))
+    worst = {'on_object': 0.0, 'relative_speed': 0.0}
+    peaks = dict.fromkeys(('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
+                           'joint_peak_accel'), 0.0)
+    rows = []
+    for pick in picks:
+        trajectory = pick.trajectory
+        emulator.receive(trajectory, pick.start, pick.arrival)
+        dwell = pick.pick_after_start + np.linspace(0.0, DWELL, DWELL_SAMPLES)
         tcp = forward_kinematics(quintic_interpolate(trajectory, dwell)[0], config.geometry)
-        object_path = pick + np.outer(dwell + start - latch, velocity)
+        object_path = pick.latched + np.outer(dwell + pick.start - pick.latch_time, velocity)
         ahead = forward_kinematics(quintic_interpolate(trajectory, dwell[1:-1] + SPEED_STEP)[0],
                                    config.geometry)
         behind = forward_kinematics(
             quintic_interpolate(trajectory, dwell[1:-1] - SPEED_STEP)[0], config.geometry)
         relative = (ahead - behind) / (2.0 * SPEED_STEP) - velocity
+        at_pick = float(np.linalg.norm(tcp[0] - object_path[0]))
         worst['on_object'] = max(worst['on_object'],
                                  float(np.linalg.norm(tcp - object_path, axis=1).max()))
         worst['relative_speed'] = max(worst['relative_speed'],
                                       float(np.linalg.norm(relative, axis=1).max()))
         for key, value in executed_peaks(trajectory, config.geometry).items():
             peaks[key] = max(peaks[key], value)
-        picks.append({'object': number, 'pick_after_latch': plan.intercept.pick_time - latch,
-                      'window_position': plan.intercept.window_position,
-                      'wait': plan.intercept.wait, 'start': start,
-                      'duration': trajectory.duration})
-        position, free_at = plan.end_position, start + trajectory.duration
-    emulator.run_until(free_at + 0.01)
-    samples = emulator.samples()
-    timeline = executed_tcp(samples, config.geometry)
-    # Each row the emulated controller commanded, against the trajectory that commanded it
-    # at that time: the timeline runs the plans exactly, none cut short or started late.
-    deviation = 0.0
-    for index, (plan_start, trajectory) in enumerate(sent):
-        rows = samples.source == index
-        local = np.clip(samples.times[rows] - plan_start, 0.0, trajectory.duration)
-        planned = forward_kinematics(quintic_interpolate(trajectory, local)[0], config.geometry)
-        deviation = max(deviation, float(np.linalg.norm(
-            timeline.positions[rows] - planned, axis=1).max(initial=0.0)))
-    span = (picks[-1]['start'] + picks[-1]['duration'] - picks[0]['start']) if picks else 0.0
+        rows.append({'object': pick.number,
+                     'pick_after_latch': pick.start + pick.pick_after_start - pick.latch_time,
+                     'window_position': pick.window_position, 'wait': pick.wait,
+                     'start': pick.start, 'duration': trajectory.duration,
+                     'executed.tcp_to_object_at_pick': at_pick})
+    deviation, timeline = 0.0, None
+    if picks:
+        emulator.run_until(picks[-1].start + picks[-1].trajectory.duration + 0.01)
+        samples = emulator.samples()
+        timeline = executed_tcp(samples, config.geometry)
+        # Each row the emulated controller commanded, against the trajectory that commanded
+        # it at that time: the timeline runs the plans exactly, none cut short or started late.
+        for index, pick in enumerate(picks):
+            rows_of = samples.source == index
+            local = np.clip(samples.times[rows_of] - pick.start, 0.0, pick.trajectory.duration)
+            planned = forward_kinematics(quintic_interpolate(pick.trajectory, local)[0],
+                                         config.geometry)
+            deviation = max(deviation, float(np.linalg.norm(
+                timeline.positions[rows_of] - planned, axis=1).max(initial=0.0)))
+    span = (picks[-1].start + picks[-1].trajectory.duration - picks[0].start) if picks else 0.0
     limits, joints = config.limits, config.joint_limits
+    outcomes = sorted([{'object': row['object'], 'outcome': 'picked'} for row in rows]
+                      + [{'object': miss['object'], 'outcome': miss['kind'],
+                          'reason': miss['reason']} for miss in misses],
+                      key=lambda outcome: outcome['object'])
     return {
-        'objects': count, 'belt_speed': speed, 'rate_per_s': rate, 'picked': len(picks),
+        'objects': count, 'belt_speed': speed, 'picked': len(picks),
         'missed': len(misses), 'miss_rate': len(misses) / count,
         'executed.picks_per_min': 60.0 * len(picks) / span if span > 0.0 else 0.0,
         'executed.max_tcp_to_object_at_pick': worst['on_object'],
         'executed.max_relative_speed_in_dwell': worst['relative_speed'],
         **{f'executed.{key}': value for key, value in peaks.items()},
         'executed.emulated_deviation_from_plans': deviation,
-        'executed.emulated_1khz_peak_speed': timeline.peak_speed,
-        'executed.emulated_1khz_peak_accel': timeline.peak_acceleration,
+        'executed.emulated_1khz_peak_speed': timeline.peak_speed if timeline else 0.0,
+        'executed.emulated_1khz_peak_accel': timeline.peak_acceleration if timeline else 0.0,
         'limits': {'max_speed': limits.max_speed, 'max_accel': limits.max_accel,
                    'max_jerk': limits.max_jerk, 'max_joint_velocity': joints.max_velocity,
                    'max_joint_accel': joints.max_acceleration},
-        'picks': picks, 'misses': misses,
+        'picks': rows, 'misses': misses, 'outcomes': outcomes,
     }
 
 
@@ -188,15 +266,21 @@ def failures(result):
         (result['picked'] > 0, 'at least one pick'),
         (result['executed.emulated_deviation_from_plans'] <= ON_OBJECT,
          f'emulated controller within {ON_OBJECT * 1e3:g} mm of every trajectory it ran'),
+        (len(result['outcomes']) == result['objects'], 'an outcome for every object'),
+        (result.get('trajectories_received', result['picked']) == result['picked'],
+         'one trajectory received for every pick released'),
     ]
     return [text for passed, text in checks if not passed]
 
 
 def format_belt_report(result):
     """Return the human-readable report of a belt run."""
+    how = ('through ellipath_node over DDS (its belt release, stamped ahead)'
+           if result['engine'] == 'node' else 'planned with the core alone (no ROS)')
     lines = [
         f"ellipath demo --belt: {result['objects']} objects at {result['rate_per_s']:g}/s on a "
-        f"belt at {result['belt_speed']:g} m/s, window x in [{WINDOW[0]:g}, {WINDOW[1]:g}] m",
+        f"belt at {result['belt_speed']:g} m/s, window x in [{WINDOW[0]:g}, {WINDOW[1]:g}] m, "
+        f'{how}',
         f"picked {result['picked']}, missed {result['missed']} "
         f"({100.0 * result['miss_rate']:.0f} %), "
         f"{result['executed.picks_per_min']:.1f} picks/min executed (from the first stamp to "
@@ -212,7 +296,22 @@ def format_belt_report(result):
         f"{result['executed.joint_peak_accel']:.4g} rad/s^2 (limits "
         + ', '.join(f'{key} {value:g}' for key, value in result['limits'].items()) + ')',
     ]
-    lines += [f"missed object {miss['object']}: {miss['reason']}" for miss in result['misses']]
+    if result['engine'] == 'node':
+        lines.append(f"the node's belt plans (wall time, this machine): median "
+                     f"{result['node_plan_time_p50'] * 1e3:.0f} ms, max "
+                     f"{result['node_plan_time_max'] * 1e3:.0f} ms; each pick starts that "
+                     'much later, twice that ahead while the robot is idle')
+    picked = {row['object']: row for row in result['picks']}
+    for outcome in result['outcomes']:
+        number = outcome['object']
+        if number in picked:
+            row = picked[number]
+            lines.append(
+                f"object {number}: picked {row['pick_after_latch']:.3f} s after its latch at "
+                f"x = {row['window_position']:.3f} m (planned), executed TCP to object "
+                f"{row['executed.tcp_to_object_at_pick'] * 1e3:.2g} mm")
+        else:
+            lines.append(f"object {number}: {outcome['outcome']}: {outcome['reason']}")
     lines += [f'failed: {text}' for text in failures(result)]
     return '\n'.join(lines) + '\n'
 
@@ -250,13 +349,93 @@ def write_belt_figure(plan, pick, velocity, latch_time, out_dir):
     return _save(figure, out_dir, 'belt_cycle.png')
 
 
-def run_belt_demo(args):
-    """Run the belt scenario from the demo's options; return the exit status (0 or 1)."""
+def belt_options_error(args):
+    """Return what is wrong with the belt scenario's options, or None."""
     if args.objects < 1 or not (0.0 < args.belt_speed <= 1.0) or not math.isfinite(args.rate) \
             or args.rate <= 0.0:
-        sys.stderr.write('ellipath demo --belt: expected --objects >= 1, --belt-speed in '
-                         '(0, 1] m/s and --rate > 0\n')
+        return 'expected --objects >= 1, --belt-speed in (0, 1] m/s and --rate > 0'
+    return None
+
+
+def run_belt_demo(args):
+    """Run the belt scenario with the core alone; return the exit status (0, 1 or 2)."""
+    error = belt_options_error(args)
+    if error is not None:
+        sys.stderr.write(f'ellipath demo --belt: {error}\n')
         return 2
     result = run_belt_scenario(args.objects, args.belt_speed, args.rate, args.seed)
     sys.stdout.write(format_belt_report(result))
     return 1 if failures(result) else 0
+
+
+def belt_parameters(speed):
+    """Return the node parameters of the belt cell, as (name, value) pairs."""
+    return [('conveyor_velocity', [float(speed), 0.0, 0.0]),
+            ('tracking_window_upstream', WINDOW[0]), ('tracking_window_downstream', WINDOW[1]),
+            ('pick_dwell', DWELL), ('place_dwell', DWELL), ('home_position', list(HOME))]
+
+
+def run_node_belt(args, cell, timeout):
+    """
+    Play the belt cell through the node; return (result dict or None, whether it timed out).
+
+    Each object goes out as one ``pick_place`` message when the camera latches it (at its
+    time in the stream, on the node clock), stamped with that time. The node plans it from the
+    end of its queue (or, idle, a stamp ahead), reports a miss with its reason, and releases
+    each pick stamped at its planned start. Every object's outcome is the node's last word
+    on its pair: ``released`` (picked) or an ERROR status with its kind and reason. The
+    trajectories are then replayed at their arrival times on the JTC emulation.
+    """
+    # ROS message conversions are imported here: the core scenario runs without ROS.
+    from ellipath_ros.conversions import joint_trajectory_data
+
+    latches, objects = object_stream(args.objects, args.rate, args.seed)
+    origin = cell.now_ns() + int(LEAD_IN * 1e9)
+    stamps = [origin + int(round(latch * 1e9)) for latch in latches]
+    for number, (stamp, pick) in enumerate(zip(stamps, objects)):
+        cell.spin_until(lambda stamp=stamp: cell.now_ns() >= stamp, timeout + LEAD_IN)
+        cell.send_pick_place(pick, PLACES[number % len(PLACES)], stamp)
+    # Pair numbers count from 1 in the order the node took the messages: the stream's.
+    if not cell.spin_until(lambda: len(_final_answers(cell.statuses())) >= args.objects,
+                           timeout + latches[-1]):
+        return None, True
+    answers = _final_answers(cell.statuses())
+    released = [values for message, values in answers.values() if message == 'released']
+    if not cell.wait_for_trajectories(len(released), timeout, SETTLE):
+        return None, True
+    # The k-th trajectory is the k-th released pair's (the node publishes, then reports).
+    released = sorted(released, key=lambda values: int(values['release_order']))
+    picks, misses = [], []
+    for (message, arrival), values in zip(cell.received_messages(), released):
+        number = int(values['pair']) - 1
+        start_ns = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        picks.append(BeltPick(
+            number, (stamps[number] - origin) * 1e-9, objects[number],
+            (start_ns - origin) * 1e-9, arrival - origin * 1e-9,
+            joint_trajectory_data(message), float(values['belt.pick_after_start']),
+            float(values['belt.window_position']), float(values['belt.wait'])))
+    for pair, (message, values) in sorted(answers.items()):
+        if message != 'released':
+            misses.append({'object': pair - 1, 'kind': values.get('kind', 'unknown'),
+                           'reason': message})
+    result = evaluate_belt_run(picks, misses, args.objects, args.belt_speed, cell.config, HOME)
+    plan_times = [float(values['plan_time']) for level, message, values in cell.statuses()
+                  if message == 'planned' and 'plan_time' in values]
+    result.update(rate_per_s=args.rate, engine='node',
+                  trajectories_received=len(cell.received_messages()),
+                  node_plan_time_p50=float(np.median(plan_times)) if plan_times else 0.0,
+                  node_plan_time_max=max(plan_times, default=0.0))
+    return result, False
+
+
+def _final_answers(statuses):
+    """Return {pair: (message, values)}: each pair's release, or the ERROR that ended it."""
+    answers = {}
+    for order, (level, message, values) in enumerate(statuses):
+        if 'pair' not in values:
+            continue
+        if level == 'OK' and message == 'released':
+            answers[int(values['pair'])] = (message, {**values, 'release_order': order})
+        elif level == 'ERROR':
+            answers[int(values['pair'])] = (message, values)
+    return answers

@@ -55,7 +55,12 @@ import threading
 import time
 
 from ellipath_ros.belt_demo import add_belt_arguments
+from ellipath_ros.belt_demo import belt_options_error
+from ellipath_ros.belt_demo import belt_parameters
+from ellipath_ros.belt_demo import failures
+from ellipath_ros.belt_demo import format_belt_report
 from ellipath_ros.belt_demo import run_belt_demo
+from ellipath_ros.belt_demo import run_node_belt
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.motion import PROFILES
 from ellipath_ros.demo_report import evaluate_run
@@ -220,7 +225,7 @@ def run_demo(args):
 
     """
     try:
-        return run_belt_demo(args) if args.belt else _run(args)
+        return run_belt_demo(args) if args.belt and args.belt_core else _run(args)
     except KeyboardInterrupt:
         sys.stderr.write('\nellipath demo: interrupted\n')
         return EXIT_INTERRUPTED
@@ -274,6 +279,9 @@ def _run_in_context(args, context, params_file, domain_id):
 
     cli_args = ['--ros-args', '--params-file', str(params_file)] if params_file else None
     overrides = [Parameter('profile', value=args.profile)] if args.profile else []
+    if args.belt:
+        overrides += [Parameter(name, value=value)
+                      for name, value in belt_parameters(args.belt_speed)]
     try:
         node = EllipathNode(context=context, namespace=f'{NAMESPACE}_{os.getpid()}',
                             cli_args=cli_args, parameter_overrides=overrides)
@@ -291,10 +299,14 @@ def _run_in_context(args, context, params_file, domain_id):
     cell = None
     try:
         cell = _Cell(context, node, settings)
-        header = (f'ellipath demo: {args.cycles} pick/place pairs to {node.get_namespace()}/'
+        what = (f'{args.objects} belt objects' if args.belt
+                else f'{args.cycles} pick/place pairs')
+        header = (f'ellipath demo: {what} to {node.get_namespace()}/'
                   f'{node.get_name()} on ROS domain {domain_id} (discovery range '
                   f'{os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"]}); profile '
                   f'{settings.planner.profile}; parameters {params_file or "node defaults"}')
+        if args.belt:
+            return _run_belt(args, cell, header)
         return _run_cycles(args, cell, settings, header)
     finally:
         if cell is not None:
@@ -348,6 +360,25 @@ def _run_cycles(args, cell, settings, header):
     return EXIT_TIMEOUT if report.timed_out else EXIT_FAILED
 
 
+def _run_belt(args, cell, header):
+    """Run the belt scenario through the node, print its report; return the exit status."""
+    error = belt_options_error(args)
+    if error is not None:
+        return _settings_error(f'--belt: {error}')
+    sys.stdout.write(f'{header}\n')
+    sys.stdout.flush()
+    failure = cell.wait_for_node(args.timeout)
+    if failure is not None:
+        sys.stderr.write(f'ellipath demo: {failure[1]}\n')
+        return failure[0]
+    result, timed_out = run_node_belt(args, cell, args.timeout)
+    if timed_out:
+        sys.stderr.write('ellipath demo --belt: timed out waiting for the node\n')
+        return EXIT_TIMEOUT
+    sys.stdout.write(format_belt_report(result))
+    return EXIT_FAILED if failures(result) else EXIT_OK
+
+
 def _send_pairs(outcomes, args, cell):
     """Send the pairs with the chosen pacing, filling in the answers; return how many."""
     for count, outcome in enumerate(outcomes):
@@ -383,6 +414,7 @@ class _Cell:
 
     def __init__(self, context, planner, settings):
         from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import PoseArray
         from geometry_msgs.msg import PoseStamped
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
@@ -396,6 +428,9 @@ class _Cell:
         depth = settings.queue_depth
         self._pick_publisher = self.node.create_publisher(PoseStamped, 'pick_pose', depth)
         self._place_publisher = self.node.create_publisher(PoseStamped, 'place_pose', depth)
+        # Belt scenario: each pair in one message, so that no drop can split it.
+        self._pose_array_type = PoseArray
+        self._pair_publisher = self.node.create_publisher(PoseArray, 'pick_place', depth)
         self._trajectories = []  # (message, system-clock time of reception [s])
         self._statuses = []  # (level, message, values) of the planner's statuses
         self._answered_trajectories = 0  # trajectories waited for by wait_until_idle()
@@ -428,7 +463,7 @@ class _Cell:
                     _LEVELS.get(bytes(status.level), 'STALE'), status.message,
                     {item.key: item.value for item in status.values}))
 
-    def _spin_until(self, condition, timeout):
+    def spin_until(self, condition, timeout):
         """Spin until ``condition()`` holds; return whether it did within ``timeout``."""
         deadline = time.monotonic() + timeout
         while not condition():
@@ -448,14 +483,43 @@ class _Cell:
         def matched():
             return (self._pick_publisher.get_subscription_count() > 0
                     and self._place_publisher.get_subscription_count() > 0
+                    and self._pair_publisher.get_subscription_count() > 0
                     and self._trajectory_subscription.get_publisher_count() > 0
                     and any(info.node_name == name and info.node_namespace == namespace
                             for info in self.node.get_publishers_info_by_topic('/diagnostics')))
 
-        if not self._spin_until(matched, timeout):
+        if not self.spin_until(matched, timeout):
             return EXIT_TIMEOUT, (f'{name} and the cell did not discover each other within '
                                   f'{timeout:g} s')
         return None
+
+    @property
+    def config(self):
+        """Return the planner's PlannerConfig."""
+        return self._settings.planner
+
+    def now_ns(self):
+        """Return the node clock's time [ns] (the clock of the stamps)."""
+        return self.node.get_clock().now().nanoseconds
+
+    def statuses(self):
+        """Return the planner's statuses so far, as (level, message, values), in order."""
+        return list(self._statuses)
+
+    def received_messages(self):
+        """Return the trajectory messages received, as (message, reception time [s])."""
+        return list(self._trajectories)
+
+    def send_pick_place(self, pick, place, stamp_ns):
+        """Publish one pair as a ``pick_place`` PoseArray stamped ``stamp_ns`` (node clock)."""
+        from builtin_interfaces.msg import Time
+
+        stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        message = self._pose_array_type()
+        message.header.frame_id = self._settings.frame_id
+        message.header.stamp = stamp
+        message.poses = [self._pose(pick, stamp).pose, self._pose(place, stamp).pose]
+        self._pair_publisher.publish(message)
 
     def _pose(self, position, stamp):
         """Return a PoseStamped at ``position`` in the node's frame, level orientation."""
@@ -487,7 +551,7 @@ class _Cell:
                     or any(values.get('topic') == 'pick_pose'
                            for _, _, values in self._statuses[first_status:]))
 
-        if not self._spin_until(pick_taken, timeout):
+        if not self.spin_until(pick_taken, timeout):
             return False
         first_status = len(self._statuses)
         outcome.sent_time = time.time()
@@ -503,7 +567,7 @@ class _Cell:
                          or (level == 'ERROR' and values.get('topic') == 'place_pose')),
                         None)
 
-        if not self._spin_until(lambda: answer() is not None, timeout):
+        if not self.spin_until(lambda: answer() is not None, timeout):
             return False
         outcome.round_trip = time.perf_counter() - sent
         outcome.level, outcome.message, outcome.values = answer()
@@ -526,12 +590,12 @@ class _Cell:
         Returns False when the trajectory did not come within ``timeout`` seconds.
         """
         expected = self._answered_trajectories + 1
-        if not self._spin_until(lambda: len(self._trajectories) >= expected, timeout):
+        if not self.spin_until(lambda: len(self._trajectories) >= expected, timeout):
             return False
         self._answered_trajectories = expected
         idle_from = self._busy_until() + margin
-        self._spin_until(lambda: time.time() >= idle_from,
-                         max(0.0, idle_from - time.time()) + SPIN_STEP)
+        self.spin_until(lambda: time.time() >= idle_from,
+                        max(0.0, idle_from - time.time()) + SPIN_STEP)
         return True
 
     def wait_for_trajectories(self, count, timeout, settle):
@@ -544,11 +608,11 @@ class _Cell:
         """
         while len(self._trajectories) < count:
             expected = len(self._trajectories) + 1
-            if not self._spin_until(lambda: len(self._trajectories) >= expected, timeout):
+            if not self.spin_until(lambda: len(self._trajectories) >= expected, timeout):
                 return False
         end = self._busy_until()
         wait = settle if end is None else max(0.0, end - time.time()) + settle
-        self._spin_until(lambda: False, wait)
+        self.spin_until(lambda: False, wait)
         return True
 
     def received(self):

@@ -14,16 +14,20 @@
 
 """Conveyor tracking: picks from a moving belt, checked on what JTC executes."""
 
+import argparse
 import functools
 import json
 import math
 
+from ellipath_ros import demo
 from ellipath_ros.belt_demo import failures
 from ellipath_ros.belt_demo import format_belt_report
 from ellipath_ros.belt_demo import run_belt_scenario
 from ellipath_ros.cli import main
+from ellipath_ros.core import conveyor as conveyor_module
 from ellipath_ros.core.conveyor import (
-    Conveyor, FRAME_LIMIT_SHARE, FrameRamp, plan_belt_cycle, ramp_time)
+    _EarliestSearch, _Trial, Conveyor, FRAME_LIMIT_SHARE, FrameRamp, INTERCEPT_ITERATIONS,
+    INTERCEPT_RESOLUTION, plan_belt_cycle, ramp_time)
 from ellipath_ros.core.errors import InvalidInputError, MissedError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -34,6 +38,7 @@ import pytest
 from test_executed import assert_within_limits
 from test_executed import dense_check
 
+ROS_DOMAIN_OFFSET = 39  # see conftest.py
 CONFIG = PlannerConfig()
 START = np.array([0.12, 0.18, -0.78])
 PLACE = np.array([0.15, 0.2, -0.8])
@@ -164,6 +169,71 @@ def test_earliest_pick_is_earlier_when_the_object_is_closer():
     assert far.intercept.pick_time > plan_near.intercept.pick_time
 
 
+def counted(monkeypatch, name):
+    """Count the calls of conveyor's ``name`` (a list holding the count)."""
+    calls = [0]
+    original = getattr(conveyor_module, name)
+
+    def counting(*args, **kwargs):
+        calls[0] += 1
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(conveyor_module, name, counting)
+    return calls
+
+
+def test_a_belt_plan_times_few_legs_and_searches_points_once_per_piece(monkeypatch):
+    timings = counted(monkeypatch, 'time_motion')
+    searches = counted(monkeypatch, '_joint_points')
+    for speed, degrees in BELTS[1:3]:
+        timings[0] = searches[0] = 0
+        velocity = belt(speed, degrees)
+        pick = -0.2 * velocity / speed + np.array([0.0, 0.0, -0.85])
+        plan_belt_cycle(START, pick, PLACE, CONFIG, Conveyor(velocity=velocity),
+                        pick_dwell=DWELL, start_time=0.02)
+        # The bracketing search it replaced timed 8 or 9 legs; points: approach, dwell,
+        # transfer, once each.
+        assert timings[0] <= 6
+        assert searches[0] == 3
+
+
+def search_smallest(value, start, speed):
+    """Run _EarliestSearch on ``value(lam)`` from ``start``; return (best lam, trials)."""
+    search = _EarliestSearch(speed)
+    lam, trials = start, 0
+    while lam is not None:
+        trials += 1
+        assert trials <= INTERCEPT_ITERATIONS
+        lam = search.propose(_Trial(lam, value(lam), 'leg', 0.0))
+    return search.best.lam, trials
+
+
+@pytest.mark.parametrize('speed', [0.1, 0.3, 0.5])
+def test_earliest_search_finds_the_smallest_feasible_target(speed):
+    # A smooth margin rising about 1/speed per metre, as a leg's: its root is found within
+    # the resolution in a few trials.
+    def smooth(lam):
+        return (lam - 0.1) / speed - 0.08 - 0.4 * (lam - 0.1) ** 2
+
+    root = 0.1 + 0.08 * speed
+    for _ in range(3):
+        root -= smooth(root) / (1.0 / speed - 0.8 * (root - 0.1))
+    best, trials = search_smallest(smooth, 0.1, speed)
+    assert root <= best <= root + INTERCEPT_RESOLUTION
+    assert trials <= 4
+
+    # A duration that jumps just past the root (the ellipse's angle rounded): the earliest
+    # feasible target is the jump, found within the resolution.
+    jump = root + 0.3 * INTERCEPT_RESOLUTION + 0.002
+    drop = 0.01 + (jump - root) / speed  # infeasible all the way to the jump
+
+    def jumping(lam):
+        return smooth(lam) - (drop if lam < jump else 0.0)
+
+    best, _ = search_smallest(jumping, 0.1, speed)
+    assert jump <= best <= jump + INTERCEPT_RESOLUTION
+
+
 @pytest.mark.parametrize('latch_along, start_time', [(0.25, 0.0), (0.0, 2.0)])
 def test_objects_that_leave_the_window_first_are_missed(latch_along, start_time):
     conveyor = Conveyor(velocity=belt(0.3, 0.0), window_upstream=-0.3,
@@ -265,6 +335,29 @@ def test_belt_scenario_picks_on_the_object_and_reports_misses():
     assert all(miss['kind'] == 'missed' for miss in result['misses'])
     assert result['executed.max_tcp_to_object_at_pick'] <= ON_OBJECT
     assert 'picks/min' in format_belt_report(result)
+
+
+def test_belt_demo_through_the_node_picks_on_the_object_and_gives_every_outcome(
+        ros_domain_id, capsys):
+    # The node plans each object as it is latched, with its planning time on the timeline.
+    parser = argparse.ArgumentParser()
+    demo.add_arguments(parser)
+    args = parser.parse_args(['--belt', '--objects', '6', '--rate', '4', '--seed', '3',
+                              '--timeout', '10', '--domain-id', str(ros_domain_id)])
+    status = demo.run_demo(args)
+    output = capsys.readouterr().out
+    assert 'through ellipath_node over DDS' in output
+    outcomes = [line for line in output.splitlines() if line.startswith('object ')]
+    assert len(outcomes) == 6
+    picked = [line for line in outcomes if ': picked ' in line]
+    # Every object not picked carries the node's reason; a miss names by how much.
+    for line in outcomes:
+        assert ': picked ' in line or ': missed: ' in line and 'past the downstream' in line
+    assert picked, output
+    # The executed TCP on the object at every pick (JTC's quintic through FK).
+    for line in picked:
+        assert float(line.split('executed TCP to object ')[1].split()[0]) <= ON_OBJECT * 1e3
+    assert 'failed:' not in output and status == 0, output
 
 
 def test_cli_plot_draws_a_belt_cycle(tmp_path, capsys):

@@ -44,10 +44,14 @@ change (anywhere in the arc with room for the S-curve) and a wait at the start.
 For a relative target lam along the belt, they are chosen so that the TCP meets
 the object exactly (see :func:`_intercept`); lam is feasible when they fit,
 and the smallest feasible lam (the earliest pick, to ``INTERCEPT_RESOLUTION``)
-is found by bracketing and Illinois false position, in at most
-``INTERCEPT_ITERATIONS`` steps each, with a clear error otherwise. The
-transfer to a place (still, or on a parallel tray belt) is met the same way,
-through the midpoint of its frame change. An object that leaves the tracking
+is found by a secant on the feasibility margin, which rises about 1/speed per
+metre of lam because the leg's durations change slowly with its target
+(:class:`_EarliestSearch`): usually three leg timings, bracketing where the
+duration jumps, in at most ``INTERCEPT_ITERATIONS`` timings, with a clear error
+otherwise. The transfer to a place (still, or on a parallel tray belt) is met
+the same way, through the midpoint of its frame change, aimed first with the
+approach's durations (usually one timing). Each leg's JTC points are searched
+once, for the chosen leg only. An object that leaves the tracking
 window before the robot can be on it is rejected as ``missed``, naming by how
 much time and distance.
 """
@@ -79,8 +83,8 @@ FRAME_LIMIT_SHARE = 0.2
 INTERCEPT_TOLERANCE = 1e-7
 INTERCEPT_ITERATIONS = 40
 # The earliest pick is found to this resolution along the belt [m] (0.3 ms at 0.3 m/s; the
-# TCP meets the object exactly whatever it is), first stepping this long [s] times the belt
-# speed, doubled, until a pick is feasible.
+# TCP meets the object exactly whatever it is); past a relative target with no path to it,
+# the search steps this long [s] times the belt speed, doubled each time.
 INTERCEPT_RESOLUTION = 1e-4
 INTERCEPT_STEP = 0.01
 # What a trial pick with no path to it (a relative target almost straight below the start)
@@ -513,7 +517,7 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
     p_s its position along the belt at the start. m is made as large as the
     leg allows, w >= 0 and y >= the window's upstream limit; lam is feasible when
     that m is not below the leg's lowest. The earliest pick is at the smallest
-    feasible lam, found by bracketing and Illinois false position.
+    feasible lam (:class:`_EarliestSearch`).
     """
     velocity = conveyor.velocity
     speed = float(np.linalg.norm(velocity))
@@ -541,60 +545,33 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
                               clearances)
         except DegenerateGeometryError:
             # No path to a target straight below the start: not a pick there.
-            return -DEGENERATE_PENALTY, None, None
+            return _Trial(lam, -DEGENERATE_PENALTY, None, None)
         midpoint = min(leg.highest, (lam - along_at_start) / speed,
                        (lam + speed * leg.duration - upstream) / speed)
-        return midpoint - leg.lowest, leg, midpoint
+        return _Trial(lam, midpoint - leg.lowest, leg, midpoint)
 
-    def feasible(lam):
-        return solve(lam)[0] >= 0.0
-
-    low = along_at_start
-    low_value, leg, _ = solve(low)
-    step = speed * INTERCEPT_STEP
-    # First guess: where the bounds would be met if the leg did not change with lam.
-    high = low + step if leg is None else max(
-        low + speed * leg.lowest,
-        upstream - speed * (leg.duration - leg.lowest)) + INTERCEPT_RESOLUTION
+    search = _EarliestSearch(speed)
+    trial = solve(along_at_start)
     for _ in range(INTERCEPT_ITERATIONS):
-        high_value, leg, midpoint = solve(high)
-        if high_value >= 0.0:
-            break
-        if leg is not None and (high - speed * midpoint + speed * leg.duration
-                                > conveyor.window_downstream):
+        if search.best is None and trial.value < 0.0 and trial.leg is not None and (
+                trial.lam + speed * (trial.leg.duration - trial.midpoint)
+                > conveyor.window_downstream):
             # Even the best case is past the window: late by the time the robot needs more.
-            _raise_missed(high + speed * (leg.duration - leg.lowest), conveyor, speed)
-        low, low_value = high, high_value
-        high += step
-        step *= 2.0
-    else:
-        raise LimitError(f'intercept: expected a feasible pick within '
-                         f'{INTERCEPT_ITERATIONS} steps along the belt, got none')
-    low_weight = high_weight = 1.0
-    for _ in range(INTERCEPT_ITERATIONS):
-        if high - low <= INTERCEPT_RESOLUTION:
+            _raise_missed(trial.lam + speed * (trial.leg.duration - trial.midpoint),
+                          conveyor, speed)
+        following = search.propose(trial)
+        if following is None:
             break
-        # Illinois false position: the secant between the bracket's ends, with the weight of
-        # an end that stays halved so that it converges even where the leg's duration jumps.
-        trial = (low * high_value * high_weight - high * low_value * low_weight) / (
-            high_value * high_weight - low_value * low_weight)
-        trial = min(max(trial, low + 0.01 * (high - low)), high - 0.01 * (high - low))
-        value = solve(trial)[0]
-        if value >= 0.0:
-            high, high_value = trial, value
-            low_weight, high_weight = 0.5 * low_weight, 1.0
-        else:
-            low, low_value = trial, value
-            high_weight, low_weight = 0.5 * high_weight, 1.0
+        trial = solve(following)
     else:
         raise LimitError(f'intercept: expected the earliest pick to within '
-                         f'{INTERCEPT_RESOLUTION:g} m in {INTERCEPT_ITERATIONS} iterations, '
-                         f'got a bracket of {high - low:.3g} m')
-    _, leg, midpoint = solve(high)
+                         f'{INTERCEPT_RESOLUTION:g} m in {INTERCEPT_ITERATIONS} leg timings, '
+                         f'got {search.describe()}')
+    lam, leg, midpoint = search.best.lam, search.best.leg, search.best.midpoint
     frame = leg.frame(np.zeros(3), velocity, midpoint, config)
     midpoint = frame.start + 0.5 * frame.duration
-    wait = max((high - speed * midpoint - along_at_start) / speed, 0.0)
-    along = high + speed * (leg.duration - midpoint)
+    wait = max((lam - speed * midpoint - along_at_start) / speed, 0.0)
+    along = lam + speed * (leg.duration - midpoint)
     if along > conveyor.window_downstream:
         _raise_missed(along, conveyor, speed)
     pick_time = start_time + wait + leg.duration
@@ -602,6 +579,91 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
     return Intercept(pick_time, position, along, wait,
                      (conveyor.window_downstream - along) / speed,
                      conveyor.window_downstream - along), leg, frame
+
+
+@dataclass(frozen=True, eq=False)
+class _Trial:
+    """One relative target lam along the belt, timed: feasible when ``value`` >= 0 [s]."""
+
+    lam: float
+    value: float
+    leg: _Leg | None
+    midpoint: float | None
+
+
+class _EarliestSearch:
+    """
+    The smallest lam with value(lam) >= 0, each value one full leg timing.
+
+    value(lam) is, where it matters, the wait left at the start (or the time the
+    object has been in the window) less the leg's shortest time to the middle of
+    its frame change: it rises by about 1/speed per metre of lam, because the
+    leg's durations change slowly with its target. So a secant on the value,
+    starting from the slope 1/speed, lands in the accepted band [0,
+    ``INTERCEPT_RESOLUTION`` / speed] in two or three timings. Where the leg's
+    duration jumps with the target (the paper's rule rounds the ellipse's angle),
+    the secant may step over the band: then it continues between the closest
+    infeasible and feasible trials by false position, halving where two steps did
+    not halve the bracket, until the bracket is ``INTERCEPT_RESOLUTION`` wide.
+    """
+
+    def __init__(self, speed):
+        self.speed = speed
+        self.low = self.best = None  # the largest infeasible and smallest feasible trials
+        self.previous = None
+        self.step = speed * INTERCEPT_STEP
+        self.widths = []
+
+    def propose(self, trial):
+        """Record ``trial``; return the next lam to time, or None once ``best`` is the pick."""
+        band = INTERCEPT_RESOLUTION / self.speed
+        if trial.value >= 0.0:
+            if self.best is None or trial.lam < self.best.lam:
+                self.best = trial
+            if trial.value <= band:
+                return None
+        elif self.low is None or trial.lam > self.low.lam:
+            self.low = trial
+        if self.low is not None and self.best is not None:
+            return self._inside()
+        if trial.leg is None:
+            # No leg to learn from (a degenerate relative target): step on, doubling.
+            lam = trial.lam + self.step
+            self.step *= 2.0
+            return lam
+        slope = 1.0 / self.speed
+        previous = self.previous
+        if previous is not None and previous.leg is not None and previous.lam != trial.lam:
+            secant = (trial.value - previous.value) / (trial.lam - previous.lam)
+            # The value rises about 1/speed per metre; a far steeper or flatter secant comes
+            # from a jump of the duration, not from the trend.
+            slope = min(max(secant, 0.25 / self.speed), 4.0 / self.speed)
+        self.previous = trial
+        lam = trial.lam + (0.5 * band - trial.value) / slope
+        if trial.value < 0.0:
+            lam = max(lam, trial.lam + INTERCEPT_RESOLUTION)
+        return lam
+
+    def _inside(self):
+        low, high = self.low, self.best
+        width = high.lam - low.lam
+        if width <= INTERCEPT_RESOLUTION:
+            return None
+        self.widths.append(width)
+        if len(self.widths) >= 3 and width > 0.5 * self.widths[-3]:
+            lam = 0.5 * (low.lam + high.lam)
+        else:
+            # The secant between the bracket's ends, aimed at the middle of the band.
+            target = 0.5 * INTERCEPT_RESOLUTION / self.speed
+            lam = low.lam + (target - low.value) * width / (high.value - low.value)
+        return min(max(lam, low.lam + 0.01 * width), high.lam - 0.01 * width)
+
+    def describe(self):
+        """Return the state of the search, for an error message."""
+        if self.best is None:
+            return 'no feasible pick'
+        return (f'a bracket of {self.best.lam - self.low.lam:.3g} m' if self.low is not None
+                else 'no bracket')
 
 
 def _raise_missed(along, conveyor, speed):
@@ -613,17 +675,21 @@ def _raise_missed(along, conveyor, speed):
         f'{conveyor.window_downstream:g} m)')
 
 
-def _transfer(lift_off, place, conveyor, config, limits, clearances):
+def _transfer(lift_off, place, conveyor, config, limits, clearances, approach):
     """
     Return the transfer leg and its FrameRamp, ending exactly on ``place``.
 
     The relative target is place - v1 T - (v0 - v1) m: iterated on T, with the
-    midpoint m chosen within the leg's freedom to absorb what T changes.
+    midpoint m chosen within the leg's freedom to absorb what T changes. The
+    first aim takes T and m from the ``approach`` leg mirrored (its descent has
+    the clearance of the transfer's lift): where the transfer's own freedom
+    holds that m, as it mostly does, one leg timing suffices.
     """
     v0, v1 = conveyor.velocity, conveyor.place_velocity
     change = v0 - v1
     size = float(np.linalg.norm(change))
-    target = place
+    _, arc, descent = approach.relative.segment_durations
+    target = place - v1 * approach.duration - change * (descent + 0.5 * arc)
     residual = math.inf
     for _ in range(INTERCEPT_ITERATIONS):
         leg = _moving_leg(lift_off, target, size, config, limits, clearances)
@@ -794,7 +860,7 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
         trajectory = _concatenate(trajectory, dwell_trajectory)
         lift_off = lift_off + belt * pick_dwell
     leg, frame = _transfer(lift_off, place, conveyor, config, limits,
-                           (config.pick_clearance, config.place_clearance))
+                           (config.pick_clearance, config.place_clearance), leg)
     transfer, transfer_trajectory, _ = _piece('transfer', leg.relative, frame, lift_off,
                                               leg.delay, leg.duration, config, bounds)
     trajectory = _concatenate(trajectory, transfer_trajectory)
