@@ -84,6 +84,9 @@ _FALLBACK_PIECES = 24
 # first (most joins need less than 10 ms), the rest only if the join fails with those.
 _JOIN_ROOM_STEPS = 15
 _JOIN_ROOM_MORE = 25
+# Bisections towards the edge of the backward scan's reach when the join's bracketing search
+# jumped over it (2 ms / 2**30: below a nanosecond).
+_JOIN_EDGE_STEPS = 30
 # Share of the acceleration and jerk limits that cruising (s'' = 0) uses at the ceiling that
 # places speed valleys.
 _CEILING_SHARE = 0.9
@@ -749,17 +752,49 @@ class _ArcPlanner:
         end = y_for(x_c)
         if end is None:
             return None
+        # The smallest x with a y found before the first without one, and that one.
+        inside, outside = x_c, None
         while True:
             low = max(low - step, 0.0)
             start = y_for(low)
             if start is not None and start[1] * end[1] <= 0.0:
                 break
+            if start is None:
+                outside = low if outside is None else outside
+            elif outside is None:
+                inside = low
             if low <= 0.0:
-                return None
+                low = self._edge_bracket(y_for, end, inside, outside)
+                if low is None:
+                    return None
+                break
             step *= 2.0
         x = _bracket_root(lambda x: (y_for(x) or (0.0, math.nan))[1], low, x_c, 1e-11)
         found = None if x is None else y_for(x)
         return None if found is None else accept(x, found[0])
+
+    @staticmethod
+    def _edge_bracket(y_for, end, inside, outside):
+        """
+        Return an x in (outside, inside] where s' continuity changes sign from ``end``, or None.
+
+        The doubling steps of the search may jump from an x whose piece ends
+        within the backward scan to one beyond it (no y), over the stretch in
+        between where the sign changes (a backward scan that stopped right at
+        the crossing): bisect towards that edge.
+        """
+        if outside is None:
+            return None
+        for _ in range(_JOIN_EDGE_STEPS):
+            middle = 0.5 * (outside + inside)
+            found = y_for(middle)
+            if found is None:
+                outside = middle
+            elif found[1] * end[1] <= 0.0:
+                return middle
+            else:
+                inside = middle
+        return None
 
     def _piece_check(self, start, duration, jerk):
         """
