@@ -73,6 +73,9 @@ _VALLEY_REACH = 0.02
 # An end speed (T1, T2) the arc cannot take comes down by this factor, at most this often.
 _END_RETRY_FACTOR = 0.8
 _END_TRIES = 12
+# ... and is then bisected this often between the lowest that failed and the one that serves
+# (to 2.5 % of a retry's step: each bisection solves the whole arc again).
+_END_BISECTIONS = 3
 # Stretches solved per plan before giving up on the scans (the fallback then serves).
 _HILL_BUDGET = 40
 # Scan steps per plan (both directions, every stretch and retry) before giving up on the
@@ -519,17 +522,54 @@ class _ArcPlanner:
         Return (arc rows, entry (s', s''), exit (s', s'')) from T1 to T2.
 
         An end speed the arc cannot take (the curvature grows too fast just
-        inside it) comes down by ``_END_RETRY_FACTOR`` until it can.
+        inside it) comes down by ``_END_RETRY_FACTOR`` until it can; each end
+        speed that came down is then bisected ``_END_BISECTIONS`` times between
+        the lowest that failed and the one that serves. A faster end does not
+        always make a faster arc (it may need a lower valley further in): a
+        trial is kept only if its arc is not slower (the line to a faster end
+        is not slower either). Bisections stop once half the step or hill
+        budget is spent: they refine, the rest is kept for the retries.
         """
+        speeds, failed = [v_in, v_out], [None, None]
         for _ in range(_END_TRIES):
             try:
-                return self._hill(0.0, (v_in, 0.0), self.length, (v_out, 0.0), True, True, 0)
+                solved = self._arc(speeds)
+                break
             except _EndTooFast as trouble:
-                if trouble.at_start:
-                    v_in *= _END_RETRY_FACTOR
-                else:
-                    v_out *= _END_RETRY_FACTOR
-        raise _NoMotion()
+                end = 0 if trouble.at_start else 1
+                failed[end] = speeds[end]
+                speeds[end] *= _END_RETRY_FACTOR
+        else:
+            raise _NoMotion()
+        try:
+            for _ in range(_END_BISECTIONS):
+                for end in (0, 1):
+                    if failed[end] is None or self._half_spent():
+                        continue
+                    trial = list(speeds)
+                    trial[end] = 0.5 * (speeds[end] + failed[end])
+                    try:
+                        found = self._arc(trial)
+                    except _EndTooFast:
+                        failed[end] = trial[end]
+                        continue
+                    if _rows_duration(found[0]) <= _rows_duration(solved[0]):
+                        solved, speeds = found, trial
+                    else:
+                        failed[end] = trial[end]
+        except _NoMotion:
+            # The hill or step budget is spent: keep the motion found.
+            pass
+        return solved
+
+    def _half_spent(self):
+        """Return whether half the step budget or half the hill budget is spent."""
+        return (self.forward.budget.left < _STEP_BUDGET // 2
+                or self.hills >= _HILL_BUDGET // 2)
+
+    def _arc(self, speeds):
+        """Solve the whole arc from T1 at speeds[0] to T2 at speeds[1] (s'' = 0 at both)."""
+        return self._hill(0.0, (speeds[0], 0.0), self.length, (speeds[1], 0.0), True, True, 0)
 
     def _hill(self, s_a, state_a, s_b, state_b, free_a, free_b, depth):
         """
