@@ -397,3 +397,20 @@ def test_end_speed_bisection_keeps_the_faster_arc():
     planner = _planner_with_arcs(_arc_up_to(0.36, lambda speed: speed))
     _, entry, _ = planner.solve(1.0, 0.5)
     assert entry[0] == pytest.approx(1.0 * 0.8 ** 5)
+
+
+def test_valley_speed_retries_bisect_towards_the_highest_that_serves():
+    # A valley at s = 0.5 whose two parts are solved only at speeds up to 0.5: 0.9 and 0.54
+    # fail, 0.324 serves, three bisections bracket 0.5 within an eighth of that step.
+    def hill(s_a, state_a, s_b, state_b, free_a, free_b, depth):
+        speed = state_b[0] if s_b == 0.5 else state_a[0]
+        if speed > 0.5:
+            raise optimal_profile._NoMotion()
+        return [(1.0 - speed, s_a, speed, 0.0, 0.0)], state_a, state_b
+
+    planner = _planner_with_arcs(None)
+    planner.grid, planner.ceiling, planner._hill = [0.0, 0.5, 1.0], [1.0, 1.0, 1.0], hill
+    rows, entry, exit_state = planner._split(1, 0.0, (0.1, 0.0), 1.0, (0.2, 0.0), True, True, 0)
+    assert 0.5 - (0.54 - 0.324) / 8.0 <= rows[0][2] <= 0.5
+    assert rows[0][2] == rows[1][2]
+    assert (entry, exit_state) == ((0.1, 0.0), (0.2, 0.0))

@@ -67,6 +67,8 @@ _BACK_UP_LIMIT = 30
 _VALLEY_SHARE = 0.9
 _VALLEY_RETRY_FACTOR = 0.6
 _VALLEY_TRIES = 4
+# A valley speed that came down is then bisected this often (to an eighth of the retry's step).
+_VALLEY_BISECTIONS = 3
 _VALLEY_DEPTH = 6
 # Valleys are looked for this far [m] beyond where the scans stopped.
 _VALLEY_REACH = 0.02
@@ -638,19 +640,47 @@ class _ArcPlanner:
         return None
 
     def _split(self, index, s_a, state_a, s_b, state_b, free_a, free_b, depth):
-        """Solve [s_a, s_b] as two parts meeting at rest acceleration in valley ``index``."""
-        s_v = float(self.grid[index])
-        for attempt in range(_VALLEY_TRIES):
-            valley = (float(self.ceiling[index]) * _VALLEY_SHARE * _VALLEY_RETRY_FACTOR ** attempt,
-                      0.0)
-            try:
-                left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
-                right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
-                                                  depth + 1)
-            except _NoMotion:
-                continue
+        """
+        Solve [s_a, s_b] as two parts meeting at rest acceleration in valley ``index``.
+
+        The valley speed starts at ``_VALLEY_SHARE`` of the ceiling there and
+        comes down by ``_VALLEY_RETRY_FACTOR`` until both parts are solved; if it
+        came down, it is bisected ``_VALLEY_BISECTIONS`` times between the
+        lowest failure and the success, a trial kept only if it is not slower
+        (while less than half the step and hill budgets is spent).
+        """
+        def parts(speed):
+            valley = (speed, 0.0)
+            left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
+            right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
+                                              depth + 1)
             return left + right, entry, exit_state
-        raise _NoMotion()
+
+        s_v = float(self.grid[index])
+        speed, failed = float(self.ceiling[index]) * _VALLEY_SHARE, None
+        for _ in range(_VALLEY_TRIES):
+            try:
+                solved = parts(speed)
+                break
+            except _NoMotion:
+                failed, speed = speed, speed * _VALLEY_RETRY_FACTOR
+        else:
+            raise _NoMotion()
+        for _ in range(_VALLEY_BISECTIONS if failed is not None else 0):
+            if self._half_spent():
+                break
+            trial = 0.5 * (speed + failed)
+            try:
+                found = parts(trial)
+            except (_NoMotion, _EndTooFast):
+                # A trial refines what was solved: its failures never undo that.
+                failed = trial
+                continue
+            if _rows_duration(found[0]) <= _rows_duration(solved[0]):
+                solved, speed = found, trial
+            else:
+                failed = trial
+        return solved
 
     def _scan_both(self, forward, backward):
         """
