@@ -362,3 +362,55 @@ def test_spent_step_budget_falls_back_to_the_sure_construction(monkeypatch):
     assert speed.max() <= LIMITS.max_speed * (1.0 + ROUNDING)
     assert accel.max() <= LIMITS.max_accel * (1.0 + ROUNDING)
     assert jerk.max() <= LIMITS.max_jerk * (1.0 + ROUNDING)
+
+
+def _planner_with_arcs(arc_of_speeds):
+    """Return an arc planner whose whole-arc solve is ``arc_of_speeds`` (for its retries)."""
+    planner = object.__new__(optimal_profile._ArcPlanner)
+    planner._arc = arc_of_speeds
+    planner._half_spent = lambda: False
+    return planner
+
+
+def _arc_up_to(highest_entry, duration_of_entry):
+    """Return a stand-in for the whole-arc solve: entry speeds above ``highest_entry`` fail."""
+    def arc(speeds):
+        if speeds[0] > highest_entry:
+            raise optimal_profile._EndTooFast(True)
+        return ([(duration_of_entry(speeds[0]), 0.0, speeds[0], 0.0, 0.0)],
+                (speeds[0], 0.0), (speeds[1], 0.0))
+    return arc
+
+
+def test_end_speed_retries_bisect_towards_the_highest_that_serves():
+    # 1.0 comes down by 0.8 to 0.32768 (0.4096 fails); three bisections bracket 0.36 within
+    # an eighth of that step.
+    planner = _planner_with_arcs(_arc_up_to(0.36, lambda speed: 1.0 - speed))
+    _, entry, exit_state = planner.solve(1.0, 0.5)
+    step = 0.4096 - 0.32768
+    assert 0.36 - step / 8.0 <= entry[0] <= 0.36
+    assert exit_state == (0.5, 0.0)
+
+
+def test_end_speed_bisection_keeps_the_faster_arc():
+    # A faster entry that makes the arc slower (a lower valley further in) is not kept.
+    planner = _planner_with_arcs(_arc_up_to(0.36, lambda speed: speed))
+    _, entry, _ = planner.solve(1.0, 0.5)
+    assert entry[0] == pytest.approx(1.0 * 0.8 ** 5)
+
+
+def test_valley_speed_retries_bisect_towards_the_highest_that_serves():
+    # A valley at s = 0.5 whose two parts are solved only at speeds up to 0.5: 0.9 and 0.54
+    # fail, 0.324 serves, three bisections bracket 0.5 within an eighth of that step.
+    def hill(s_a, state_a, s_b, state_b, free_a, free_b, depth):
+        speed = state_b[0] if s_b == 0.5 else state_a[0]
+        if speed > 0.5:
+            raise optimal_profile._NoMotion()
+        return [(1.0 - speed, s_a, speed, 0.0, 0.0)], state_a, state_b
+
+    planner = _planner_with_arcs(None)
+    planner.grid, planner.ceiling, planner._hill = [0.0, 0.5, 1.0], [1.0, 1.0, 1.0], hill
+    rows, entry, exit_state = planner._split(1, 0.0, (0.1, 0.0), 1.0, (0.2, 0.0), True, True, 0)
+    assert 0.5 - (0.54 - 0.324) / 8.0 <= rows[0][2] <= 0.5
+    assert rows[0][2] == rows[1][2]
+    assert (entry, exit_state) == ((0.1, 0.0), (0.2, 0.0))

@@ -67,12 +67,17 @@ _BACK_UP_LIMIT = 30
 _VALLEY_SHARE = 0.9
 _VALLEY_RETRY_FACTOR = 0.6
 _VALLEY_TRIES = 4
+# A valley speed that came down is then bisected this often (to an eighth of the retry's step).
+_VALLEY_BISECTIONS = 3
 _VALLEY_DEPTH = 6
 # Valleys are looked for this far [m] beyond where the scans stopped.
 _VALLEY_REACH = 0.02
 # An end speed (T1, T2) the arc cannot take comes down by this factor, at most this often.
 _END_RETRY_FACTOR = 0.8
 _END_TRIES = 12
+# ... and is then bisected this often between the lowest that failed and the one that serves
+# (to 2.5 % of a retry's step: each bisection solves the whole arc again).
+_END_BISECTIONS = 3
 # Stretches solved per plan before giving up on the scans (the fallback then serves).
 _HILL_BUDGET = 40
 # Scan steps per plan (both directions, every stretch and retry) before giving up on the
@@ -84,6 +89,9 @@ _FALLBACK_PIECES = 24
 # first (most joins need less than 10 ms), the rest only if the join fails with those.
 _JOIN_ROOM_STEPS = 15
 _JOIN_ROOM_MORE = 25
+# Bisections towards the edge of the backward scan's reach when the join's bracketing search
+# jumped over it (2 ms / 2**30: below a nanosecond).
+_JOIN_EDGE_STEPS = 30
 # Share of the acceleration and jerk limits that cruising (s'' = 0) uses at the ceiling that
 # places speed valleys.
 _CEILING_SHARE = 0.9
@@ -516,17 +524,54 @@ class _ArcPlanner:
         Return (arc rows, entry (s', s''), exit (s', s'')) from T1 to T2.
 
         An end speed the arc cannot take (the curvature grows too fast just
-        inside it) comes down by ``_END_RETRY_FACTOR`` until it can.
+        inside it) comes down by ``_END_RETRY_FACTOR`` until it can; each end
+        speed that came down is then bisected ``_END_BISECTIONS`` times between
+        the lowest that failed and the one that serves. A faster end does not
+        always make a faster arc (it may need a lower valley further in): a
+        trial is kept only if its arc is not slower (the line to a faster end
+        is not slower either). Bisections stop once half the step or hill
+        budget is spent: they refine, the rest is kept for the retries.
         """
+        speeds, failed = [v_in, v_out], [None, None]
         for _ in range(_END_TRIES):
             try:
-                return self._hill(0.0, (v_in, 0.0), self.length, (v_out, 0.0), True, True, 0)
+                solved = self._arc(speeds)
+                break
             except _EndTooFast as trouble:
-                if trouble.at_start:
-                    v_in *= _END_RETRY_FACTOR
-                else:
-                    v_out *= _END_RETRY_FACTOR
-        raise _NoMotion()
+                end = 0 if trouble.at_start else 1
+                failed[end] = speeds[end]
+                speeds[end] *= _END_RETRY_FACTOR
+        else:
+            raise _NoMotion()
+        try:
+            for _ in range(_END_BISECTIONS):
+                for end in (0, 1):
+                    if failed[end] is None or self._half_spent():
+                        continue
+                    trial = list(speeds)
+                    trial[end] = 0.5 * (speeds[end] + failed[end])
+                    try:
+                        found = self._arc(trial)
+                    except _EndTooFast:
+                        failed[end] = trial[end]
+                        continue
+                    if _rows_duration(found[0]) <= _rows_duration(solved[0]):
+                        solved, speeds = found, trial
+                    else:
+                        failed[end] = trial[end]
+        except _NoMotion:
+            # The hill or step budget is spent: keep the motion found.
+            pass
+        return solved
+
+    def _half_spent(self):
+        """Return whether half the step budget or half the hill budget is spent."""
+        return (self.forward.budget.left < _STEP_BUDGET // 2
+                or self.hills >= _HILL_BUDGET // 2)
+
+    def _arc(self, speeds):
+        """Solve the whole arc from T1 at speeds[0] to T2 at speeds[1] (s'' = 0 at both)."""
+        return self._hill(0.0, (speeds[0], 0.0), self.length, (speeds[1], 0.0), True, True, 0)
 
     def _hill(self, s_a, state_a, s_b, state_b, free_a, free_b, depth):
         """
@@ -595,19 +640,47 @@ class _ArcPlanner:
         return None
 
     def _split(self, index, s_a, state_a, s_b, state_b, free_a, free_b, depth):
-        """Solve [s_a, s_b] as two parts meeting at rest acceleration in valley ``index``."""
-        s_v = float(self.grid[index])
-        for attempt in range(_VALLEY_TRIES):
-            valley = (float(self.ceiling[index]) * _VALLEY_SHARE * _VALLEY_RETRY_FACTOR ** attempt,
-                      0.0)
-            try:
-                left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
-                right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
-                                                  depth + 1)
-            except _NoMotion:
-                continue
+        """
+        Solve [s_a, s_b] as two parts meeting at rest acceleration in valley ``index``.
+
+        The valley speed starts at ``_VALLEY_SHARE`` of the ceiling there and
+        comes down by ``_VALLEY_RETRY_FACTOR`` until both parts are solved; if it
+        came down, it is bisected ``_VALLEY_BISECTIONS`` times between the
+        lowest failure and the success, a trial kept only if it is not slower
+        (while less than half the step and hill budgets is spent).
+        """
+        def parts(speed):
+            valley = (speed, 0.0)
+            left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
+            right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
+                                              depth + 1)
             return left + right, entry, exit_state
-        raise _NoMotion()
+
+        s_v = float(self.grid[index])
+        speed, failed = float(self.ceiling[index]) * _VALLEY_SHARE, None
+        for _ in range(_VALLEY_TRIES):
+            try:
+                solved = parts(speed)
+                break
+            except _NoMotion:
+                failed, speed = speed, speed * _VALLEY_RETRY_FACTOR
+        else:
+            raise _NoMotion()
+        for _ in range(_VALLEY_BISECTIONS if failed is not None else 0):
+            if self._half_spent():
+                break
+            trial = 0.5 * (speed + failed)
+            try:
+                found = parts(trial)
+            except (_NoMotion, _EndTooFast):
+                # A trial refines what was solved: its failures never undo that.
+                failed = trial
+                continue
+            if _rows_duration(found[0]) <= _rows_duration(solved[0]):
+                solved, speed = found, trial
+            else:
+                failed = trial
+        return solved
 
     def _scan_both(self, forward, backward):
         """
@@ -749,17 +822,49 @@ class _ArcPlanner:
         end = y_for(x_c)
         if end is None:
             return None
+        # The smallest x with a y found before the first without one, and that one.
+        inside, outside = x_c, None
         while True:
             low = max(low - step, 0.0)
             start = y_for(low)
             if start is not None and start[1] * end[1] <= 0.0:
                 break
+            if start is None:
+                outside = low if outside is None else outside
+            elif outside is None:
+                inside = low
             if low <= 0.0:
-                return None
+                low = self._edge_bracket(y_for, end, inside, outside)
+                if low is None:
+                    return None
+                break
             step *= 2.0
         x = _bracket_root(lambda x: (y_for(x) or (0.0, math.nan))[1], low, x_c, 1e-11)
         found = None if x is None else y_for(x)
         return None if found is None else accept(x, found[0])
+
+    @staticmethod
+    def _edge_bracket(y_for, end, inside, outside):
+        """
+        Return an x in (outside, inside] where s' continuity changes sign from ``end``, or None.
+
+        The doubling steps of the search may jump from an x whose piece ends
+        within the backward scan to one beyond it (no y), over the stretch in
+        between where the sign changes (a backward scan that stopped right at
+        the crossing): bisect towards that edge.
+        """
+        if outside is None:
+            return None
+        for _ in range(_JOIN_EDGE_STEPS):
+            middle = 0.5 * (outside + inside)
+            found = y_for(middle)
+            if found is None:
+                outside = middle
+            elif found[1] * end[1] <= 0.0:
+                return middle
+            else:
+                inside = middle
+        return None
 
     def _piece_check(self, start, duration, jerk):
         """
