@@ -581,18 +581,19 @@ class MotionSamples:
         The sampled motion.
     times : numpy.ndarray
         Sample times [s], (N,), sorted, from 0 to the duration.
-    position, velocity, acceleration : numpy.ndarray
-        TCP states at ``times`` [m, m/s, m/s^2], (N, 3).
+    position, velocity, acceleration, jerk : numpy.ndarray
+        TCP states at ``times`` [m, m/s, m/s^2, m/s^3], (N, 3).
     q, qdot, qddot : numpy.ndarray
         Joint states at ``times`` [rad, rad/s, rad/s^2], (N, 3).
 
     """
 
-    def __init__(self, motion, geometry, times, position, velocity, acceleration, joints=None):
+    def __init__(self, motion, geometry, times, tcp, joints=None):
         """Keep the samples; ``joints`` (q, q_dot, q_ddot) are computed when not given."""
         self.motion, self.geometry = motion, geometry
         self.times = times
-        self.position, self.velocity, self.acceleration = position, velocity, acceleration
+        self.position, self.velocity, self.acceleration, self.jerk = tcp
+        position, velocity, acceleration = tcp[:3]
         if joints is None:
             joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
         self.q, self.qdot, self.qddot = joints
@@ -603,15 +604,15 @@ class MotionSamples:
         """Sample ``motion`` (its own sample set if it has one) and convert to joint space."""
         sampled = getattr(motion, 'sampled_states', None)
         if sampled is not None:
-            times, position, velocity, acceleration, _ = sampled()
+            times, *tcp = sampled()
         else:
             duration = _motion_duration(motion)
             times = np.linspace(0.0, duration, max(2, math.ceil(duration / _SAMPLE_PERIOD)) + 1)
             steps = getattr(motion, 'jerk_steps', None)
             if steps is not None:
                 times = np.union1d(times, steps()[0])
-            position, velocity, acceleration, _ = _checked_state_at(motion, times)
-        return cls(motion, geometry, times, position, velocity, acceleration)
+            tcp = _checked_state_at(motion, times)
+        return cls(motion, geometry, times, tcp)
 
     @property
     def duration(self):
@@ -623,13 +624,34 @@ class MotionSamples:
         if factor == 1.0:
             return self
         return MotionSamples(
-            motion, self.geometry, self.times * factor, self.position, self.velocity / factor,
-            self.acceleration / factor ** 2,
+            motion, self.geometry, self.times * factor,
+            (self.position, self.velocity / factor, self.acceleration / factor ** 2,
+             self.jerk / factor ** 3),
             (self.q, self.qdot / factor, self.qddot / factor ** 2))
 
     def joint_peaks(self):
         """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
         return float(np.abs(self.qdot).max()), float(np.abs(self.qddot).max())
+
+    def segment_peaks(self, times):
+        """
+        Return the planned peaks on each interval of ``times`` (K,), (K - 1, 5).
+
+        In the order of ``EXECUTED_KEYS``: largest TCP speed, acceleration and
+        jerk norm, joint speed and acceleration of the samples in the interval,
+        both ends included.
+        """
+        values = np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
+                                  (self.velocity, self.acceleration, self.jerk)]
+                                 + [np.abs(self.qdot).max(axis=1),
+                                    np.abs(self.qddot).max(axis=1)])
+        first = np.searchsorted(self.times, times[:-1], side='left')
+        last = np.searchsorted(self.times, times[1:], side='right')
+        # reduceat over [first, last) per interval; an interval without a sample of its own
+        # takes the sample at its start.
+        ends = np.maximum(last, first + 1)
+        bounds = np.ravel(np.column_stack((first, ends)))
+        return np.maximum.reduceat(np.vstack((values, values[-1:])), bounds, axis=0)[::2]
 
     def states(self, times, low=None, high=None):
         """
