@@ -421,13 +421,21 @@ def _check_executed_workspace(trajectory, config, leg):
 
 def _spaced(times, added):
     """Return ``times`` with those of ``added`` at least ``_KNOT_MIN_GAP`` from every other."""
-    merged = list(times)
-    for candidate in sorted(added):
-        position = np.searchsorted(merged, candidate)
-        neighbours = merged[max(position - 1, 0):position + 1]
-        if all(abs(candidate - other) >= _KNOT_MIN_GAP for other in neighbours):
-            merged.insert(position, candidate)
-    return np.array(merged)
+    candidates = np.unique(np.asarray(added, dtype=float))
+    if candidates.size == 0:
+        return times
+    position = np.searchsorted(times, candidates)
+    before = times[np.maximum(position - 1, 0)]
+    after = times[np.minimum(position, times.size - 1)]
+    clear = ((np.abs(candidates - before) >= _KNOT_MIN_GAP)
+             & (np.abs(after - candidates) >= _KNOT_MIN_GAP))
+    # In time order, each candidate also keeps the gap to the one accepted before it.
+    kept, last = [], -math.inf
+    for candidate in candidates[clear].tolist():
+        if candidate - last >= _KNOT_MIN_GAP:
+            kept.append(candidate)
+            last = candidate
+    return np.sort(np.concatenate((times, kept)))
 
 
 def _with_points(trajectory, samples, times):
