@@ -581,18 +581,19 @@ class MotionSamples:
         The sampled motion.
     times : numpy.ndarray
         Sample times [s], (N,), sorted, from 0 to the duration.
-    position, velocity, acceleration : numpy.ndarray
-        TCP states at ``times`` [m, m/s, m/s^2], (N, 3).
+    position, velocity, acceleration, jerk : numpy.ndarray
+        TCP states at ``times`` [m, m/s, m/s^2, m/s^3], (N, 3).
     q, qdot, qddot : numpy.ndarray
         Joint states at ``times`` [rad, rad/s, rad/s^2], (N, 3).
 
     """
 
-    def __init__(self, motion, geometry, times, position, velocity, acceleration, joints=None):
+    def __init__(self, motion, geometry, times, tcp, joints=None):
         """Keep the samples; ``joints`` (q, q_dot, q_ddot) are computed when not given."""
         self.motion, self.geometry = motion, geometry
         self.times = times
-        self.position, self.velocity, self.acceleration = position, velocity, acceleration
+        self.position, self.velocity, self.acceleration, self.jerk = tcp
+        position, velocity, acceleration = tcp[:3]
         if joints is None:
             joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
         self.q, self.qdot, self.qddot = joints
@@ -603,15 +604,15 @@ class MotionSamples:
         """Sample ``motion`` (its own sample set if it has one) and convert to joint space."""
         sampled = getattr(motion, 'sampled_states', None)
         if sampled is not None:
-            times, position, velocity, acceleration, _ = sampled()
+            times, *tcp = sampled()
         else:
             duration = _motion_duration(motion)
             times = np.linspace(0.0, duration, max(2, math.ceil(duration / _SAMPLE_PERIOD)) + 1)
             steps = getattr(motion, 'jerk_steps', None)
             if steps is not None:
                 times = np.union1d(times, steps()[0])
-            position, velocity, acceleration, _ = _checked_state_at(motion, times)
-        return cls(motion, geometry, times, position, velocity, acceleration)
+            tcp = _checked_state_at(motion, times)
+        return cls(motion, geometry, times, tcp)
 
     @property
     def duration(self):
@@ -623,13 +624,34 @@ class MotionSamples:
         if factor == 1.0:
             return self
         return MotionSamples(
-            motion, self.geometry, self.times * factor, self.position, self.velocity / factor,
-            self.acceleration / factor ** 2,
+            motion, self.geometry, self.times * factor,
+            (self.position, self.velocity / factor, self.acceleration / factor ** 2,
+             self.jerk / factor ** 3),
             (self.q, self.qdot / factor, self.qddot / factor ** 2))
 
     def joint_peaks(self):
         """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
         return float(np.abs(self.qdot).max()), float(np.abs(self.qddot).max())
+
+    def segment_peaks(self, times):
+        """
+        Return the planned peaks on each interval of ``times`` (K,), (K - 1, 5).
+
+        In the order of ``EXECUTED_KEYS``: largest TCP speed, acceleration and
+        jerk norm, joint speed and acceleration of the samples in the interval,
+        both ends included.
+        """
+        values = np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
+                                  (self.velocity, self.acceleration, self.jerk)]
+                                 + [np.abs(self.qdot).max(axis=1),
+                                    np.abs(self.qddot).max(axis=1)])
+        first = np.searchsorted(self.times, times[:-1], side='left')
+        last = np.searchsorted(self.times, times[1:], side='right')
+        # reduceat over [first, last) per interval; an interval without a sample of its own
+        # takes the sample at its start.
+        ends = np.maximum(last, first + 1)
+        bounds = np.ravel(np.column_stack((first, ends)))
+        return np.maximum.reduceat(np.vstack((values, values[-1:])), bounds, axis=0)[::2]
 
     def states(self, times, low=None, high=None):
         """
@@ -675,29 +697,27 @@ class MotionSamples:
         """
         Return the planned positions at ``times`` (N,) [s], shape (N, 3) [m].
 
-        Interpolated between the samples by the quintic through position,
-        velocity and acceleration at both ends (the interpolation JTC itself
-        uses): within 2e-8 m of the motion on random legs, even across the
-        acceleration step of the paper's join (the step's two sides are
-        samples), under 0.2 % of the tolerances it serves
-        (``_PLANNED_TABLE_MIN_TOLERANCE``).
+        Interpolated between the samples by the cubic through position and
+        velocity at both ends: its error is at most a jerk step times h**3 / 96
+        for samples h apart, about 1e-10 m at 0.1 ms, a millionth of the
+        tolerances it serves (``_PLANNED_TABLE_MIN_TOLERANCE`` and up).
         """
         if self._planned is None:
             # Of two samples at the same time (both sides of a step), the later one.
             keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
             keep[0] = True
-            table_times = self.times[keep]
-            index = np.arange(table_times.size - 1)
-            position, velocity, acceleration = (
-                values[keep] for values in (self.position, self.velocity, self.acceleration))
-            self._planned = table_times, interpolation_coefficients(
-                np.diff(table_times), position[index], position[index + 1], velocity[index],
-                velocity[index + 1], acceleration[index], acceleration[index + 1])
-        table_times, coefficients = self._planned
+            self._planned = self.times[keep], self.position[keep], self.velocity[keep]
+        table_times, position, velocity = self._planned
         step = np.clip(np.searchsorted(table_times, times, side='right') - 1, 0,
                        table_times.size - 2)
-        offset = (times - table_times[step])[:, np.newaxis]
-        return evaluate_polynomials(coefficients[step], offset, derivatives=False)[:, 0]
+        start, width = table_times[step], table_times[step + 1] - table_times[step]
+        x = ((times - start) / width)[:, np.newaxis]
+        x2, x3 = x * x, x * x * x
+        # Cubic Hermite basis on [0, 1]; the velocities scale with the width.
+        return ((2.0 * x3 - 3.0 * x2 + 1.0) * position[step]
+                + (x3 - 2.0 * x2 + x) * width[:, np.newaxis] * velocity[step]
+                + (3.0 * x2 - 2.0 * x3) * position[step + 1]
+                + (x3 - x2) * width[:, np.newaxis] * velocity[step + 1])
 
 
 def _nearest_sample(sorted_times, targets):
@@ -719,13 +739,14 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
 
     1. refine: start from knots about 50 ms apart; split every rejected segment in half
        (one vectorised evaluation per round) until all are accepted;
-    2. prune: test, for every interior knot at once, the segment that would replace it and
-       its two neighbours; drop the acceptable ones with the smallest errors, never two
-       adjacent knots in one round; repeat until no knot can be dropped;
-    3. re-place: halving leaves knots on a dyadic lattice, so try fewer knots spread evenly
+    2. re-place: halving leaves knots on a dyadic lattice, so try fewer knots spread evenly
        over the measured error density (quintic error ~ h^6, see ``_equidistribute``); a
-       trial set replaces the current one only if all its segments pass (then it is pruned
-       too). At most six trials.
+       trial set replaces the current one only if all its segments pass, and is then
+       pruned (3.). At most six trials;
+    3. prune: test, for every interior knot at once, the segment that would replace it and
+       its two neighbours; drop the acceptable ones with the smallest errors, never two
+       adjacent knots in one round; repeat until no knot can be dropped. A refined set that
+       no trial replaced is pruned at the end.
 
     The result is locally minimal (no single knot can be removed), includes t = 0 and
     t = duration, and is typically within one or two knots of the greedy optimum. Knots sit
@@ -786,7 +807,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     index = np.arange(times.size)
     errors = errors_of(knots, index[:-1], index[1:])
     knots, errors = _refine(samples, knots, errors, accept, shortest, errors_of)
-    knots, errors = _prune(knots, errors, accept, errors_of)
+    pruned = False
     # Dyadic halving leaves knots on a coarse lattice: re-place them from the measured error
     # density with fewer segments, and keep a set only if every segment passes.
     times, measured = knots.time_from_start, errors
@@ -803,12 +824,15 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
         times, measured = trial_times, trial_errors
         if (trial_errors <= accept).all():
             knots, errors = _prune(trial, trial_errors, accept, errors_of)
+            pruned = True
             target = min(_segment_count(times, measured, accept),
                          knots.time_from_start.size - 2)
         else:
             target = max(_segment_count(times, measured, accept), target + 1)
             if target >= knots.time_from_start.size - 1:
                 break
+    if not pruned:
+        knots, errors = _prune(knots, errors, accept, errors_of)
     data = JointTrajectoryData(names, knots.time_from_start, knots.positions,
                                knots.velocities, knots.accelerations)
     return data, float(errors.max())

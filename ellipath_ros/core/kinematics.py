@@ -183,10 +183,11 @@ def _solve_ik(points, geometry):
     ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
     from the actuator axis to the effector joint).
     """
-    offset = (geometry.effector_radius - geometry.base_radius) * _RADIAL
-    relative = points[:, np.newaxis, :] + offset  # C_i - A_i, shape (N, 3, 3)
-    u = np.einsum('nij,ij->ni', relative, _RADIAL)
-    w = np.einsum('nij,ij->ni', relative, _TANGENT)
+    # C_i - A_i = p + (r - R) e_i; its radial and tangential coordinates, per arm (N, 3).
+    x, y = points[:, 0:1], points[:, 1:2]
+    u = x * _RADIAL[:, 0] + y * _RADIAL[:, 1] + (geometry.effector_radius
+                                                 - geometry.base_radius)
+    w = x * _TANGENT[:, 0] + y * _TANGENT[:, 1]
     z = np.broadcast_to(points[:, 2:3], u.shape)
     upper, fore = geometry.upper_arm, geometry.forearm
     g = u * u + w * w + z * z + upper * upper - fore * fore

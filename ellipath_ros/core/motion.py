@@ -330,10 +330,11 @@ class TimedMotion:
             sizes = np.linalg.norm(jerk[after] - jerk[before], axis=1)
         marks = self._mark_times()
         if marks.size:
-            before = self.state_at(np.maximum(marks - epsilon, 0.0))[3]
-            after = self.state_at(np.minimum(marks + epsilon, self.duration))[3]
+            jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
+                                                 np.minimum(marks + epsilon, self.duration))))[3]
             times = np.concatenate((times, marks))
-            sizes = np.concatenate((sizes, np.linalg.norm(after - before, axis=1)))
+            sizes = np.concatenate((sizes, np.linalg.norm(jerk[marks.size:] - jerk[:marks.size],
+                                                          axis=1)))
         order = np.argsort(times, kind='stable')
         times, sizes = times[order], sizes[order]
         unique = np.concatenate(([True], np.diff(times) > 0.0))

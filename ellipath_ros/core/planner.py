@@ -62,8 +62,10 @@ _EXECUTED_AIM = 0.999
 # Jerk steps of at least this share of max_jerk get a point when their segment breaks a limit
 # (not closer than _KNOT_MIN_GAP [s] to another point), for at most _KNOT_ROUNDS rounds.
 _JERK_STEP_SHARE = 0.1
-_KNOT_MIN_GAP = 1e-4
+_KNOT_MIN_GAP = 1e-5
 _KNOT_ROUNDS = 8
+# Below this share above the planned motion's peak, an executed peak is the motion's own.
+_QUINTIC_EXCESS = 1e-4
 # A leg slowed down for the executed limits is slowed this much beyond the measured excess.
 _SLOWDOWN_MARGIN = 2e-3
 # A leg slower than this is refused before it is sampled (limits far too low, or the paper's
@@ -419,13 +421,21 @@ def _check_executed_workspace(trajectory, config, leg):
 
 def _spaced(times, added):
     """Return ``times`` with those of ``added`` at least ``_KNOT_MIN_GAP`` from every other."""
-    merged = list(times)
-    for candidate in sorted(added):
-        position = np.searchsorted(merged, candidate)
-        neighbours = merged[max(position - 1, 0):position + 1]
-        if all(abs(candidate - other) >= _KNOT_MIN_GAP for other in neighbours):
-            merged.insert(position, candidate)
-    return np.array(merged)
+    candidates = np.unique(np.asarray(added, dtype=float))
+    if candidates.size == 0:
+        return times
+    position = np.searchsorted(times, candidates)
+    before = times[np.maximum(position - 1, 0)]
+    after = times[np.minimum(position, times.size - 1)]
+    clear = ((np.abs(candidates - before) >= _KNOT_MIN_GAP)
+             & (np.abs(after - candidates) >= _KNOT_MIN_GAP))
+    # In time order, each candidate also keeps the gap to the one accepted before it.
+    kept, last = [], -math.inf
+    for candidate in candidates[clear].tolist():
+        if candidate - last >= _KNOT_MIN_GAP:
+            kept.append(candidate)
+            last = candidate
+    return np.sort(np.concatenate((times, kept)))
 
 
 def _with_points(trajectory, samples, times):
@@ -483,11 +493,12 @@ def _joint_points(motion, config, bounds, samples=None):
     Knots (``minimal_knots``) bound the position deviation of JTC's interpolation; its
     speed, acceleration and jerk can still exceed the planned ones: a quintic cannot follow
     a step of the jerk, and reaches up to 1.7 times the true jerk across one. So every
-    segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` gets points at
-    the jerk steps inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle
-    if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded
-    peak. Samples output is checked, not changed. The table (S, 5) has the peaks of each
-    segment in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
+    segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` and exceed the
+    planned motion's there by more than ``_QUINTIC_EXCESS`` gets points at the jerk steps
+    inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle if it has
+    none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded peak.
+    Samples output is checked, not changed. The table (S, 5) has the peaks of each segment
+    in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
     are taken when given, else made here.
     """
     geometry = config.geometry
@@ -504,20 +515,22 @@ def _joint_points(motion, config, bounds, samples=None):
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
     for _ in range(_KNOT_ROUNDS):
-        broken = np.flatnonzero((table > bounds).any(axis=1))
+        times = trajectory.time_from_start
+        # Points mend what the quintic adds to the motion, not what the motion itself has.
+        broken = np.flatnonzero(((table > bounds) & (
+            table > (1.0 + _QUINTIC_EXCESS) * samples.segment_peaks(times))).any(axis=1))
         if broken.size == 0:
             break
-        times = trajectory.time_from_start
         added = []
         for index in broken:
             start, end = times[index], times[index + 1]
-            inside = steps[(steps > start) & (steps < end)]
+            # A step closer than the gap to an end is at that point already.
+            inside = steps[(steps > start + _KNOT_MIN_GAP) & (steps < end - _KNOT_MIN_GAP)]
             added.extend(inside if inside.size else [0.5 * (start + end)])
         trajectory = _with_points(trajectory, samples, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
-        # Points mend what the quintic adds to the motion, not what the motion itself has:
-        # when a round lowers no exceeded peak, only the slow-down that follows can.
+        # When a round lowers no exceeded peak, only the slow-down that follows can.
         if not (ratios < worst)[worst > 1.0].any():
             break
         worst = ratios

@@ -1,0 +1,162 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""One sample set per leg: what the knots, the peaks and the slow-downs derive from it."""
+
+from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.geometry import plan_path
+from ellipath_ros.core.joint_trajectory import (
+    executed_table, knots_at, MotionSamples, quintic_positions)
+from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics, joint_motion
+from ellipath_ros.core.planner import _slowed_points, plan_transfer, PlannerConfig
+from ellipath_ros.core.timing import time_motion
+import numpy as np
+import pytest
+
+CONFIG = PlannerConfig()
+
+
+def random_pairs(count, seed=11):
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        yield tuple(np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3),
+                              rng.uniform(-0.95, -0.7)]) for _ in range(2))
+
+
+def timed(pick=(0.0, 0.0, -0.8), place=(0.3, 0.0, -0.75)):
+    path = plan_path(pick, place, CONFIG.pick_clearance, CONFIG.place_clearance, CONFIG.arc,
+                     CONFIG.join, CONFIG.join_tolerance)
+    return time_motion(path, CONFIG.limits)
+
+
+def test_the_samples_of_a_slowed_motion_are_the_samples_rescaled():
+    motion = timed()
+    factor = 1.037
+    slowed = motion.scaled(factor)
+    rescaled = MotionSamples.of(motion, CONFIG.geometry).scaled(factor, slowed)
+    # Independently: the slower motion evaluated and converted at the rescaled times.
+    position, velocity, acceleration, jerk = slowed.state_at(rescaled.times)
+    q, qdot, qddot = joint_motion(position, velocity, acceleration, CONFIG.geometry)
+    for mine, exact in ((rescaled.position, position), (rescaled.velocity, velocity),
+                        (rescaled.acceleration, acceleration), (rescaled.jerk, jerk),
+                        (rescaled.q, q), (rescaled.qdot, qdot), (rescaled.qddot, qddot)):
+        np.testing.assert_allclose(mine, exact, rtol=1e-9, atol=1e-9)
+
+
+def test_slowing_points_down_gives_the_slowed_motions_points_and_peaks():
+    leg = plan_transfer((0.0, 0.0, -0.8), (0.3, 0.0, -0.75), CONFIG)
+    trajectory = leg.joint_trajectory
+    table = executed_table(trajectory, CONFIG.geometry)
+    factor = 1.05
+    slowed, slowed_table = _slowed_points(trajectory, table, factor)
+    # The points are the slower motion's exact joint states at the stretched times ...
+    exact = knots_at(leg.motion.scaled(factor), CONFIG.geometry, slowed.time_from_start,
+                     CONFIG.joint_names)
+    for name in ('positions', 'velocities', 'accelerations'):
+        np.testing.assert_allclose(getattr(slowed, name), getattr(exact, name), rtol=1e-9,
+                                   atol=1e-9)
+    # ... and the scaled peaks are those measured on the slowed points themselves (to the
+    # rounding of the jerk's sums).
+    np.testing.assert_allclose(slowed_table, executed_table(slowed, CONFIG.geometry),
+                               rtol=1e-7)
+    assert slowed_table[:, 2].max() < table[:, 2].max() / factor ** 3 * (1.0 + 1e-9)
+
+
+def test_planned_joint_peaks_of_the_samples_match_a_dense_grid():
+    checked = 0
+    for pick, place in random_pairs(12):
+        try:
+            motion = timed(pick, place)
+        except EllipathError:
+            continue
+        velocity_peak, accel_peak = MotionSamples.of(motion, CONFIG.geometry).joint_peaks()
+        t = np.linspace(0.0, motion.duration, int(motion.duration / 2e-5) + 1)
+        position, velocity, acceleration, _ = motion.state_at(t)
+        _, qdot, qddot = joint_motion(position, velocity, acceleration, CONFIG.geometry)
+        # A 20 us grid (5 times finer than the samples) finds at most 0.1 % more.
+        assert velocity_peak >= (1.0 - 1e-3) * np.abs(qdot).max()
+        assert accel_peak >= (1.0 - 1e-3) * np.abs(qddot).max()
+        checked += 1
+    assert checked >= 8
+
+
+def test_segment_peaks_are_the_largest_samples_of_each_interval():
+    samples = MotionSamples.of(timed(), CONFIG.geometry)
+    times = np.array([0.0, 0.01, 0.0537, 0.12, samples.duration])
+    peaks = samples.segment_peaks(times)
+    assert peaks.shape == (4, 5)
+    for index in range(4):
+        inside = (samples.times >= times[index]) & (samples.times <= times[index + 1])
+        expected = [np.linalg.norm(samples.velocity[inside], axis=1).max(),
+                    np.linalg.norm(samples.acceleration[inside], axis=1).max(),
+                    np.linalg.norm(samples.jerk[inside], axis=1).max(),
+                    np.abs(samples.qdot[inside]).max(), np.abs(samples.qddot[inside]).max()]
+        np.testing.assert_allclose(peaks[index], expected, rtol=1e-12)
+
+
+def test_knots_from_the_samples_meet_the_tolerance_on_random_legs():
+    checked = 0
+    for pick, place in random_pairs(30, seed=5):
+        try:
+            leg = plan_transfer(pick, place, CONFIG)
+        except EllipathError:
+            continue
+        trajectory = leg.joint_trajectory
+        times = trajectory.time_from_start
+        # Each point carries the motion's exact joint position at its time.
+        np.testing.assert_allclose(
+            trajectory.positions, inverse_kinematics(leg.motion.state_at(times)[0],
+                                                     CONFIG.geometry), atol=1e-12)
+        # JTC's quintic stays within the tolerance of the plan on a 50 us grid.
+        t = np.linspace(0.0, leg.motion.duration, int(leg.motion.duration / 5e-5) + 1)
+        executed = forward_kinematics(quintic_positions(trajectory, t), CONFIG.geometry)
+        deviation = np.linalg.norm(executed - leg.motion.state_at(t)[0], axis=1).max()
+        assert deviation <= CONFIG.knot_tolerance
+        assert leg.max_interpolation_error >= 0.95 * deviation
+        checked += 1
+    assert checked >= 20
+
+
+def test_jerk_steps_are_where_the_path_and_the_law_step():
+    motion = timed()
+    times, sizes = motion.jerk_steps()
+    assert np.all(np.diff(times) > 0.0)
+    # T1 and T2 (and the G2 transitions' ends) are among them, found on the law itself.
+    ends = motion.path.segment_ends[1:3]
+    at_ends = [np.abs(motion.path_state(times)[0] - end).min() for end in ends]
+    assert max(at_ends) < 1e-9
+    # The sizes are the one-sided jerk differences, evaluated here directly.
+    epsilon = 1e-9 * motion.duration
+    before = motion.state_at(times - epsilon)[3]
+    after = motion.state_at(times + epsilon)[3]
+    np.testing.assert_allclose(sizes, np.linalg.norm(after - before, axis=1), rtol=1e-6,
+                               atol=1e-6 * CONFIG.limits.max_jerk)
+
+
+@pytest.mark.parametrize('factor', [1.0, 1.3])
+def test_knot_states_move_to_samples_only_inside_their_cell(factor):
+    motion = timed().scaled(factor) if factor > 1.0 else timed()
+    samples = MotionSamples.of(motion, CONFIG.geometry)
+    wanted = np.array([0.0, 0.01234567, 0.1, motion.duration])
+    low = np.array([-np.inf, 0.012345, 0.05, 0.2])
+    high = np.array([0.005, 0.0123457, 0.15, np.inf])
+    times, q, qdot, qddot = samples.states(wanted, low, high)
+    # Ends stay where they are; a cell without a sample in its middle half keeps the time.
+    assert times[0] == 0.0 and times[-1] == motion.duration
+    assert times[1] == wanted[1]
+    assert abs(times[2] - wanted[2]) <= 1e-4 * factor and times[2] in samples.times
+    exact = knots_at(motion, CONFIG.geometry, times, CONFIG.joint_names)
+    for mine, other in ((q, exact.positions), (qdot, exact.velocities),
+                        (qddot, exact.accelerations)):
+        np.testing.assert_allclose(mine, other, rtol=1e-9, atol=1e-9)
