@@ -151,6 +151,10 @@ STOP_DEADLINE = SHUTDOWN_WAIT + 3.0
 # what was not yet delivered (docs/reliability.md).
 INTAKE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE, depth=1)
+# History of the /diagnostics publisher (KEEP_LAST, RELIABLE): in a flood the node publishes
+# a status per message read, and a writer whose history is full overwrites statuses a slow
+# subscriber has not yet acknowledged. KEEP_ALL would block the node instead.
+DIAGNOSTICS_DEPTH = 1000
 # Most picks waiting for their place (stamp pairing; beyond it the oldest is evicted with a
 # status). The executor serves pick_pose before place_pose when both have messages, so in a
 # burst the picks are read ahead of their places by up to the place_pose backlog in DDS (two
@@ -255,7 +259,7 @@ class EllipathNode(Node):
         self._trajectory_publisher = self.create_publisher(
             JointTrajectory, 'joint_trajectory', depth)
         self._diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, '/diagnostics', depth)
+            DiagnosticArray, '/diagnostics', DIAGNOSTICS_DEPTH)
         self._marker_publisher = self.create_publisher(MarkerArray, '~/path_markers', depth)
 
         # Daemon threads: a plan still running after SHUTDOWN_WAIT cannot keep the process.
