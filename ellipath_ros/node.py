@@ -156,9 +156,10 @@ INTAKE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityP
 # subscriber has not yet acknowledged. KEEP_ALL would block the node instead.
 DIAGNOSTICS_DEPTH = 1000
 # Most picks waiting for their place (stamp pairing; beyond it the oldest is evicted with a
-# status). The executor serves pick_pose before place_pose when both have messages, so in a
-# burst the picks are read ahead of their places by up to the place_pose backlog in DDS (two
-# histories of 5000, see INTAKE_QOS). A waiting pick takes about 0.3 kB.
+# status). The executor visits pick_pose before place_pose (creation order, one mutually
+# exclusive group), so in a burst picks are read ahead of their places, by up to the
+# place_pose backlog in DDS (two histories of 5000, see INTAKE_QOS); picks whose place was
+# never sent wait too, until evicted. A waiting pick takes about 0.3 kB.
 PENDING_PICKS = 12_000
 # The release thread polls the clock for this long before a release is due, rather than
 # sleeping until then: a sleeping thread can get a core milliseconds late on a busy machine.
