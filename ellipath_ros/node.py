@@ -151,10 +151,15 @@ STOP_DEADLINE = SHUTDOWN_WAIT + 3.0
 # what was not yet delivered (docs/reliability.md).
 INTAKE_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE, depth=1)
+# History of the /diagnostics publisher (KEEP_LAST, RELIABLE): in a flood the node publishes
+# a status per message read, and a writer whose history is full overwrites statuses a slow
+# subscriber has not yet acknowledged. KEEP_ALL would block the node instead.
+DIAGNOSTICS_DEPTH = 1000
 # Most picks waiting for their place (stamp pairing; beyond it the oldest is evicted with a
-# status). The executor serves pick_pose before place_pose when both have messages, so in a
-# burst the picks are read ahead of their places by up to the place_pose backlog in DDS (two
-# histories of 5000, see INTAKE_QOS). A waiting pick takes about 0.3 kB.
+# status). The executor visits pick_pose before place_pose (creation order, one mutually
+# exclusive group), so in a burst picks are read ahead of their places, by up to the
+# place_pose backlog in DDS (two histories of 5000, see INTAKE_QOS); picks whose place was
+# never sent wait too, until evicted. A waiting pick takes about 0.3 kB.
 PENDING_PICKS = 12_000
 # The release thread polls the clock for this long before a release is due, rather than
 # sleeping until then: a sleeping thread can get a core milliseconds late on a busy machine.
@@ -255,7 +260,7 @@ class EllipathNode(Node):
         self._trajectory_publisher = self.create_publisher(
             JointTrajectory, 'joint_trajectory', depth)
         self._diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, '/diagnostics', depth)
+            DiagnosticArray, '/diagnostics', DIAGNOSTICS_DEPTH)
         self._marker_publisher = self.create_publisher(MarkerArray, '~/path_markers', depth)
 
         # Daemon threads: a plan still running after SHUTDOWN_WAIT cannot keep the process.

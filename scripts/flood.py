@@ -549,12 +549,15 @@ def main():
     parser.add_argument('--invalid', type=float, default=0.02,
                         help='share of invalid pairs (NaN place or wrong frame)')
     parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--drain-timeout', type=float, default=DRAIN_TIMEOUT,
+                        help='how long the node may take to read and plan what it holds [s]')
     parser.add_argument('--stream', choices=STREAMS, default='mixed',
                         help='pick_place messages, pick_pose + place_pose, or both')
     parser.add_argument('--log-dir', help="where the node's log goes (default: a temp dir)")
     options = parser.parse_args()
     report = run(options.rate, options.seconds, options.seed, invalid_share=options.invalid,
-                 log_dir=options.log_dir, out=sys.stderr, stream=options.stream)
+                 log_dir=options.log_dir, out=sys.stderr, stream=options.stream,
+                 drain_timeout=options.drain_timeout)
     print(json.dumps(report, indent=1))
     return 0 if report['ok'] else 1
 

@@ -17,17 +17,24 @@ Long runs: resident memory over many plans and over time (issue 13, item 4).
 
 ``plans``: ``plan_cycle`` in this process on seeded random reachable pairs, cycled (each
 plan starts where the one before it ended); the resident set size (VmRSS) is sampled every
-``--every`` plans and the growth after the first sample is reported.
+``--every`` plans and the growth after the first sample is reported, with the slope over
+the second half of the run. Each sample also gives the Python heap (blocks allocated by
+CPython's small-object allocator, where every Python object and NumPy array header lives:
+a leak of objects grows it) and, with ``--trim``, VmRSS again after glibc's
+``malloc_trim(0)`` has returned every free page to the system: memory that is freed but
+kept by the allocator then no longer counts. Run it with ``MALLOC_ARENA_MAX`` or
+``MALLOC_MMAP_THRESHOLD_`` set to compare allocator policies.
 
 ``node``: ``ellipath_node`` as a subprocess under continuous valid pairs from this process
 for ``--minutes`` (the flood of ``scripts/flood.py`` at a low rate, so that the queue stays
 busy without being flooded); the node's VmRSS is sampled every second.
 
-    .venv/bin/python scripts/soak.py plans --plans 100000
+    .venv/bin/python scripts/soak.py plans --plans 100000 --trim
     ROS_DOMAIN_ID=61 .venv/bin/python scripts/soak.py node --minutes 30
 """
 
 import argparse
+import ctypes
 import json
 import os
 import sys
@@ -54,8 +61,10 @@ def random_point(rng):
     return np.array([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-0.95, -0.7)])
 
 
-def soak_plans(plans, every, seed):
+def soak_plans(plans, every, seed, trim=False):
     """Plan ``plans`` cycles, print a JSON line per RSS sample, return the summary dict."""
+    # glibc only: malloc_trim(0) gives every wholly free page of every arena back.
+    malloc_trim = ctypes.CDLL('libc.so.6').malloc_trim if trim else None
     rng = np.random.default_rng(seed)
     config = PlannerConfig()
     pairs = [(random_point(rng), random_point(rng)) for _ in range(DISTINCT_PAIRS)]
@@ -73,7 +82,11 @@ def soak_plans(plans, every, seed):
         if (index + 1) % every == 0:
             sample = {'plans': index + 1, 'planned': planned, 'rejected': rejected,
                       'rss_kib': flood.resident_kib(os.getpid()),
+                      'python_blocks': sys.getallocatedblocks(),
                       'elapsed_s': round(time.monotonic() - started)}
+            if malloc_trim is not None:
+                malloc_trim(0)
+                sample['rss_trimmed_kib'] = flood.resident_kib(os.getpid())
             samples.append(sample)
             print(json.dumps(sample), flush=True)
     return summary(samples, 'plans')
@@ -84,9 +97,19 @@ def summary(samples, count_key):
     if not samples:
         return {'samples': 0}
     rss = [sample['rss_kib'] for sample in samples]
-    return {'samples': len(samples), count_key: samples[-1][count_key],
-            'rss_first_kib': rss[0], 'rss_last_kib': rss[-1], 'rss_max_kib': max(rss),
-            'growth_kib': rss[-1] - rss[0], 'growth_max_kib': max(rss) - rss[0]}
+    result = {'samples': len(samples), count_key: samples[-1][count_key],
+              'rss_first_kib': rss[0], 'rss_last_kib': rss[-1], 'rss_max_kib': max(rss),
+              'growth_kib': rss[-1] - rss[0], 'growth_max_kib': max(rss) - rss[0]}
+    half = samples[len(samples) // 2:]
+    if len(half) >= 2:
+        # Least-squares slope of VmRSS over the second half, per 1,000 of count_key.
+        counts = np.array([sample[count_key] for sample in half], dtype=float)
+        for key in ('rss_kib', 'rss_trimmed_kib', 'python_blocks'):
+            if key in half[0]:
+                values = np.array([sample[key] for sample in half], dtype=float)
+                result[f'{key}_per_1000_second_half'] = round(
+                    1e3 * float(np.polyfit(counts, values, 1)[0]), 1)
+    return result
 
 
 def soak_node(minutes, rate, seed):
@@ -103,13 +126,15 @@ def main():
     plans.add_argument('--plans', type=int, default=100_000)
     plans.add_argument('--every', type=int, default=1000, help='plans between RSS samples')
     plans.add_argument('--seed', type=int, default=17)
+    plans.add_argument('--trim', action='store_true',
+                       help='also sample VmRSS after malloc_trim(0) (glibc)')
     node = commands.add_parser('node', help='ellipath_node under continuous pairs')
     node.add_argument('--minutes', type=float, default=30.0)
     node.add_argument('--rate', type=float, default=4.0, help='pairs per second')
     node.add_argument('--seed', type=int, default=17)
     options = parser.parse_args()
     if options.command == 'plans':
-        result = soak_plans(options.plans, options.every, options.seed)
+        result = soak_plans(options.plans, options.every, options.seed, options.trim)
     else:
         result = soak_node(options.minutes, options.rate, options.seed)
     print(json.dumps({'summary': result}), flush=True)

@@ -85,7 +85,8 @@ class PosePairing:
     node passes ``(sec, nanosec)``); a lost message then leaves an unpaired pick or place and
     never joins a place with another pick. In ``sequence`` mode a place pairs with the
     pending pick and a second pick replaces the first, which mis-pairs when a place is lost.
-    Not thread-safe: the node uses it from one mutually exclusive callback group only.
+    Not thread-safe: the node uses it from one mutually exclusive callback group only (other
+    threads only read :meth:`counts`, a copy).
 
     Every pick counted as received ends in exactly one of: paired, pending, invalid (see
     :meth:`reject_pick`), replaced (a pick of the same key came), evicted (``depth`` picks
