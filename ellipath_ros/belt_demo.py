@@ -43,8 +43,8 @@ import sys
 from ellipath_ros.core.controller import executed_tcp
 from ellipath_ros.core.controller import JazzyJtcEmulator
 from ellipath_ros.core.conveyor import Conveyor
-from ellipath_ros.core.conveyor import plan_belt_cycle
-from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.conveyor import next_belt_pick
+from ellipath_ros.core.conveyor import PICK_ORDERS
 from ellipath_ros.core.joint_trajectory import executed_peaks
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
@@ -86,6 +86,11 @@ def add_belt_arguments(parser):
     parser.add_argument('--belt-core', action='store_true',
                         help='with --belt: plan with the core alone (no ROS, no planning '
                         'latency), as the robot timeline would be with instant plans')
+    parser.add_argument('--order', choices=PICK_ORDERS, default='latch',
+                        help='with --belt-core: which waiting object is taken when the robot '
+                        'is free: the first in latch order that can still be caught, or the '
+                        'one whose cycle ends soonest unless that loses the first (default: '
+                        '%(default)s, as the node, which takes its pairs in arrival order)')
     parser.add_argument('--belt-speed', type=float, default=0.3,
                         help='belt speed along +x [m/s] (default: %(default)s)')
     parser.add_argument('--objects', type=int, default=20,
@@ -123,11 +128,14 @@ class BeltPick:
     wait: float  # [s] rest at the start before the approach (planned)
 
 
-def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
+def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None, order='latch'):
     """
     Play the belt cell with the core alone; return a JSON-ready dict of what was executed.
 
-    Every figure is of the executed motion unless its key says ``planned``.
+    Whenever the robot is free, the objects latched by then wait, and ``order`` says which is
+    taken (:func:`~ellipath_ros.core.conveyor.next_belt_pick`); the others wait for the next
+    cycle or, missed, are reported at once. Every figure is of the executed motion unless its
+    key says ``planned``.
     """
     config = config or PlannerConfig()
     conveyor = Conveyor(velocity=np.array([speed, 0.0, 0.0]), window_upstream=WINDOW[0],
@@ -135,26 +143,31 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None):
     latches, objects = object_stream(count, rate, seed)
     position, free_at = np.array(HOME), 0.0
     picks, misses = [], []
-    for number, (latch, pick) in enumerate(zip(latches, objects)):
-        start = max(free_at, latch)
+    waiting = list(range(count))
+    while waiting:
+        start = max(free_at, latches[waiting[0]])
+        candidates = [(number, latches[number], objects[number]) for number in waiting
+                      if latches[number] <= start]
         place = np.array(PLACES[len(picks) % len(PLACES)])
-        try:
-            plan = plan_belt_cycle(position, pick, place, config, conveyor, pick_dwell=DWELL,
-                                   place_dwell=DWELL, latch_time=latch, start_time=start)
-        except EllipathError as error:
-            misses.append({'object': number, 'kind': error.kind, 'reason': str(error)})
+        (number, plan), rejected = next_belt_pick(
+            position, start, candidates, place, config, conveyor, pick_dwell=DWELL,
+            place_dwell=DWELL, order=order)
+        for missed, error in rejected.items():
+            misses.append({'object': missed, 'kind': error.kind, 'reason': str(error)})
+            waiting.remove(missed)
+        if number is None:
             continue
+        waiting.remove(number)
         trajectory = plan.joint_trajectory
         # Delivered before its stamp, inside the previous place dwell (or while idle): the
         # controller holds the robot at rest until the stamp, so it starts exactly then.
         arrival = max(start - HANDOVER, picks[-1].arrival if picks else 0.0)
-        picks.append(BeltPick(number, latch, pick, start, arrival, trajectory,
-                              plan.intercept.pick_time - start,
+        picks.append(BeltPick(number, latches[number], objects[number], start, arrival,
+                              trajectory, plan.intercept.pick_time - start,
                               plan.intercept.window_position, plan.intercept.wait))
         position, free_at = plan.end_position, start + trajectory.duration
     result = evaluate_belt_run(picks, misses, count, speed, config, HOME)
-    result['rate_per_s'] = rate
-    result['engine'] = 'core'
+    result.update(rate_per_s=rate, engine='core', order=order)
     return result
 
 
@@ -275,8 +288,9 @@ def failures(result):
 
 def format_belt_report(result):
     """Return the human-readable report of a belt run."""
-    how = ('through ellipath_node over DDS (its belt release, stamped ahead)'
-           if result['engine'] == 'node' else 'planned with the core alone (no ROS)')
+    how = ('through ellipath_node over DDS (its belt release, stamped ahead; pairs in '
+           'arrival order)' if result['engine'] == 'node' else
+           f"planned with the core alone (no ROS), order {result['order']}")
     lines = [
         f"ellipath demo --belt: {result['objects']} objects at {result['rate_per_s']:g}/s on a "
         f"belt at {result['belt_speed']:g} m/s, window x in [{WINDOW[0]:g}, {WINDOW[1]:g}] m, "
@@ -363,7 +377,8 @@ def run_belt_demo(args):
     if error is not None:
         sys.stderr.write(f'ellipath demo --belt: {error}\n')
         return 2
-    result = run_belt_scenario(args.objects, args.belt_speed, args.rate, args.seed)
+    result = run_belt_scenario(args.objects, args.belt_speed, args.rate, args.seed,
+                               order=args.order)
     sys.stdout.write(format_belt_report(result))
     return 1 if failures(result) else 0
 

@@ -1058,3 +1058,44 @@ def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
     assert np.allclose(replanned.details['belt_velocity'], [0.25, 0.0, 0.0])
     old_pick = later.details['plan'].intercept.pick_time
     assert replanned.details['plan'].intercept.pick_time != old_pick
+
+
+def test_a_held_belt_pick_is_replanned_when_the_twist_changes_the_belt_speed(make_harness):
+    harness = make_harness({'conveyor_twist_timeout': 30.0, 'pick_dwell': 0.2})
+    publisher = harness.client.create_publisher(TwistStamped, 'conveyor_twist', 10)
+    assert harness.spin_until(lambda: publisher.get_subscription_count() > 0)
+
+    def set_belt_speed(speed):
+        twist = TwistStamped()
+        twist.header.frame_id = 'base_link'
+        twist.twist.linear.x = speed
+        publisher.publish(twist)
+        assert harness.spin_until(lambda: harness.node._conveyor_twist is not None
+                                  and harness.node._conveyor_twist[0][0] == speed)
+
+    def with_message(message):
+        return [status for status in harness.statuses[first:] if status.message == message]
+
+    set_belt_speed(0.3)
+    latch, stamp = node_now(harness)
+    first = len(harness.statuses)
+    # Two objects latched together: the second (upstream) is planned for the end of the first
+    # and held while the first runs (about a second).
+    pick = np.array([-0.8, -0.05, -0.85])
+    harness.pick_place_publisher.publish(
+        pose_array((-0.35, 0.05, -0.85), (0.15, 0.2, -0.8), stamp=stamp))
+    harness.pick_place_publisher.publish(pose_array(pick, (0.15, 0.1, -0.8), stamp=stamp))
+    assert harness.spin_until(lambda: len(with_message('planned')) == 2)
+    assert len(with_message('released')) < 2
+    set_belt_speed(0.2)
+    assert harness.spin_until(lambda: len(with_message('released')) == 2)
+    values = values_of(with_message('released')[1])
+    # Re-planned for the belt the twist gives now, not the one it was planned for.
+    assert values['start_source'].startswith('replanned'), values
+    harness.spin_until(lambda: len(harness.received) == 2)
+    trajectory = harness.trajectories[-1]
+    after_latch = float(values['belt.pick_after_latch'])
+    q, _, _ = quintic_interpolate(joint_trajectory_data(trajectory),
+                                  np.array([latch + after_latch - stamp_seconds(trajectory)]))
+    expected = pick + np.array([0.2, 0.0, 0.0]) * after_latch
+    assert np.linalg.norm(forward_kinematics(q, GEOMETRY)[0] - expected) <= 1e-4

@@ -62,8 +62,8 @@ import math
 import numpy as np
 
 from .errors import (
-    DegenerateGeometryError, InvalidInputError, LimitError, MissedError, require_finite,
-    require_point, require_range)
+    DegenerateGeometryError, EllipathError, InvalidInputError, LimitError, MissedError,
+    require_finite, require_point, require_range)
 from .geometry import plan_path
 from .joint_trajectory import check_joint_limits, validate_jtc
 from .limits import CartesianLimits
@@ -99,8 +99,15 @@ BELT_SLOWDOWN_ATTEMPTS = 3
 BELT_SLOWDOWN_MARGIN = 1.02
 # Belt speeds below this are zero [m/s]: a static pick, planned by plan_cycle itself.
 STILL_BELT = 1e-9
+# A transfer whose relative target is too close below its lift-off for an ellipse is aimed
+# this much further aside along the frame's change [m] (see _transfer).
+TRANSFER_ASIDE = 0.01
+# A wait at the start shorter than this is none [s] (see _intercept).
+SHORTEST_WAIT = 1e-6
 # Largest belt speed accepted [m/s].
 MAX_BELT_SPEED = 2.0
+# Orders in which waiting belt objects are taken (see next_belt_pick).
+PICK_ORDERS = ('latch', 'soonest')
 
 
 def _require_velocity(name, value):
@@ -570,7 +577,11 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
     lam, leg, midpoint = search.best.lam, search.best.leg, search.best.midpoint
     frame = leg.frame(np.zeros(3), velocity, midpoint, config)
     midpoint = frame.start + 0.5 * frame.duration
-    wait = max((lam - speed * midpoint - along_at_start) / speed, 0.0)
+    wait = (lam - speed * midpoint - along_at_start) / speed
+    if wait < SHORTEST_WAIT:
+        # Rounding leaves waits of a few 1e-18 s where none is needed; a point that close to
+        # the start is not a valid JTC point. The TCP then misses by speed * wait, < 1 um.
+        wait = 0.0
     along = lam + speed * (leg.duration - midpoint)
     if along > conveyor.window_downstream:
         _raise_missed(along, conveyor, speed)
@@ -692,7 +703,17 @@ def _transfer(lift_off, place, conveyor, config, limits, clearances, approach):
     target = place - v1 * approach.duration - change * (descent + 0.5 * arc)
     residual = math.inf
     for _ in range(INTERCEPT_ITERATIONS):
-        leg = _moving_leg(lift_off, target, size, config, limits, clearances)
+        try:
+            leg = _moving_leg(lift_off, target, size, config, limits, clearances)
+        except DegenerateGeometryError:
+            if size == 0.0:
+                raise
+            # A pick next to the place: the relative target is almost straight below the
+            # lift-off. The frame's change, aimed earlier or later, moves it aside along the
+            # change; away from the lift-off.
+            away = 1.0 if float(np.dot(target - lift_off, change)) >= 0.0 else -1.0
+            target = target + away * TRANSFER_ASIDE * change / size
+            continue
         rest = place - v1 * leg.duration - target
         needed = float(np.dot(rest, change)) / size ** 2 if size > 0.0 else 0.0
         frame = leg.frame(v0, v1, needed, config)
@@ -899,6 +920,71 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
     })
     return BeltCyclePlan(legs, trajectory, metrics, np.asarray(end, dtype=float), intercept,
                          start_time)
+
+
+def next_belt_pick(start, start_time, candidates, place, config=None, conveyor=None, *,
+                   pick_dwell=0.0, place_dwell=0.0, order='soonest'):
+    """
+    Choose and plan the next belt pick among the objects waiting; report the missed ones.
+
+    Parameters
+    ----------
+    start : array_like
+        TCP position at the cycle start, at rest [m], (3,).
+    start_time : float
+        When the cycle starts, on the latch clock [s].
+    candidates : sequence of (int, float, array_like)
+        The objects latched and not yet picked: (number, latch time [s], position at the
+        latch [m]), in latch order.
+    place, config, conveyor, pick_dwell, place_dwell
+        As :func:`plan_belt_cycle`.
+    order : str
+        ``'latch'``: the first object in latch order that can still be caught (what a FIFO
+        of pairs does; with one camera, the most downstream). ``'soonest'``: every waiting
+        object is planned and the one whose cycle ends first is taken (the robot is free
+        soonest for the next), unless the first catchable in latch order could not be
+        caught after it; then that one.
+
+    Returns
+    -------
+    tuple
+        (number, BeltCyclePlan) of the pick, or (None, None) when none can be caught; and a
+        dict {number: EllipathError} of the objects rejected on the way (missed from this
+        start, they are missed from any later one: they are further downstream by then).
+
+    """
+    if order not in PICK_ORDERS:
+        raise InvalidInputError(f'order: expected one of {PICK_ORDERS}, got {order!r}')
+    options = {'pick_dwell': pick_dwell, 'place_dwell': place_dwell}
+    rejected, plans = {}, {}
+    for number, latch_time, position in candidates:
+        try:
+            plans[number] = plan_belt_cycle(start, position, place, config, conveyor,
+                                            latch_time=latch_time, start_time=start_time,
+                                            **options)
+        except EllipathError as error:
+            rejected[number] = error
+            continue
+        if order == 'latch':
+            break
+    if not plans:
+        return (None, None), rejected
+    first = next(iter(plans))  # the first in latch order that can be caught
+    soonest = min(plans, key=lambda number: plans[number].joint_trajectory.duration)
+    if soonest != first:
+        # Only if the first can still be caught after it (to the same place): otherwise
+        # taking the soonest would trade one pick for another.
+        after = plans[soonest]
+        latch_time, position = next((latch_time, position)
+                                    for number, latch_time, position in candidates
+                                    if number == first)
+        try:
+            plan_belt_cycle(after.end_position, position, place, config, conveyor,
+                            latch_time=latch_time,
+                            start_time=start_time + after.joint_trajectory.duration, **options)
+        except EllipathError:
+            soonest = first
+    return (soonest, plans[soonest]), rejected
 
 
 def _constant(velocity, config):
