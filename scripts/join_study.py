@@ -43,7 +43,7 @@ import math
 import sys
 
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
-from ellipath_ros.core import geometry, optimal_profile
+from ellipath_ros.core import arc_scan, geometry, optimal_profile
 from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
 from ellipath_ros.core.limits import _JERK_MARGIN, CartesianLimits
 from ellipath_ros.core.timing import time_motion
@@ -60,7 +60,7 @@ PAIR_COUNT = 40
 PAIR_SEED = 7
 PAIR_RADIUS = 0.2
 PAIR_HEIGHTS = (-0.9, -0.75)
-# Shares of the scan (optimal_profile.py) raised one at a time, then all at once.
+# Shares of the scan (arc_scan.py, optimal_profile.py) raised one at a time, then all at once.
 TIMING_VARIANTS = ({}, {'_NORMAL_JERK_SHARE': 0.98}, {'_CEILING_SHARE': 0.98},
                    {'_VALLEY_SHARE': 0.98}, {'_END_RETRY_FACTOR': 0.97, '_END_TRIES': 100},
                    {'_NORMAL_JERK_SHARE': 0.98, '_CEILING_SHARE': 0.98, '_VALLEY_SHARE': 0.98,
@@ -181,8 +181,9 @@ def timing_variants():
     """Print the production design's ratios with the scan's shares raised."""
     print('## timing: shares of the limits in the scan raised (planned ratios, g2)')
     for variant in TIMING_VARIANTS:
-        with patched(optimal_profile, **variant) as names:
+        with patched(optimal_profile, **variant) as names, patched(arc_scan, **variant) as more:
             row = [f'{ratio(case, g2_path(case)):.4f}' for case in CYCLES]
+        names = sorted(names + more)
         described = ', '.join(f'{name} {variant[name]}' for name in names) or 'as shipped'
         print(f"  {described}: {' | '.join(row)}")
 
