@@ -557,15 +557,12 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
                        (lam + speed * leg.duration - upstream) / speed)
         return _Trial(lam, midpoint - leg.lowest, leg, midpoint)
 
+    # The earliest feasible pick, then whether it is inside the window: a leg's duration is
+    # not monotonic in its target (a short arc is slowed down to fit the frame's change), so
+    # an infeasible trial's best case says nothing about a later one.
     search = _EarliestSearch(speed)
     trial = solve(along_at_start)
     for _ in range(INTERCEPT_ITERATIONS):
-        if search.best is None and trial.value < 0.0 and trial.leg is not None and (
-                trial.lam + speed * (trial.leg.duration - trial.midpoint)
-                > conveyor.window_downstream):
-            # Even the best case is past the window: late by the time the robot needs more.
-            _raise_missed(trial.lam + speed * (trial.leg.duration - trial.midpoint),
-                          conveyor, speed)
         following = search.propose(trial)
         if following is None:
             break
