@@ -45,11 +45,13 @@ from ellipath_ros.core.controller import JazzyJtcEmulator
 from ellipath_ros.core.conveyor import Conveyor
 from ellipath_ros.core.conveyor import next_belt_pick
 from ellipath_ros.core.conveyor import PICK_ORDERS
+from ellipath_ros.core.joint_trajectory import EXECUTED_KEYS
 from ellipath_ros.core.joint_trajectory import executed_peaks
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.planner import executed_bounds
 from ellipath_ros.core.planner import PlannerConfig
 import numpy as np
 
@@ -255,7 +257,10 @@ def evaluate_belt_run(picks, misses, count, speed, config, home):
         'executed.emulated_1khz_peak_accel': timeline.peak_acceleration if timeline else 0.0,
         'limits': {'max_speed': limits.max_speed, 'max_accel': limits.max_accel,
                    'max_jerk': limits.max_jerk, 'max_joint_velocity': joints.max_velocity,
-                   'max_joint_accel': joints.max_acceleration},
+                   'max_joint_accel': joints.max_acceleration,
+                   # What the planner allows the executed jerk (1.1 x max_jerk with g2 joins).
+                   'executed_jerk_bound': float(dict(zip(EXECUTED_KEYS, executed_bounds(
+                       config)))['peak_jerk'])},
         'picks': rows, 'misses': misses, 'outcomes': outcomes,
     }
 
@@ -270,6 +275,8 @@ def failures(result):
          f'relative speed within {RELATIVE_SPEED * 1e3:g} mm/s during every dwell'),
         (result['executed.peak_speed'] <= limits['max_speed'], 'TCP speed limit'),
         (result['executed.peak_accel'] <= limits['max_accel'], 'TCP acceleration limit'),
+        (result['executed.peak_jerk'] <= limits['executed_jerk_bound'],
+         f"TCP jerk within {limits['executed_jerk_bound']:g} m/s^3"),
         (result['executed.joint_peak_velocity'] <= limits['max_joint_velocity'],
          'joint speed limit'),
         (result['executed.joint_peak_accel'] <= limits['max_joint_accel'],

@@ -557,15 +557,12 @@ def _intercept(start, start_time, pick, latch_time, conveyor, config, limits):
                        (lam + speed * leg.duration - upstream) / speed)
         return _Trial(lam, midpoint - leg.lowest, leg, midpoint)
 
+    # The earliest feasible pick, then whether it is inside the window: a leg's duration is
+    # not monotonic in its target (a short arc is slowed down to fit the frame's change), so
+    # an infeasible trial's best case says nothing about a later one.
     search = _EarliestSearch(speed)
     trial = solve(along_at_start)
     for _ in range(INTERCEPT_ITERATIONS):
-        if search.best is None and trial.value < 0.0 and trial.leg is not None and (
-                trial.lam + speed * (trial.leg.duration - trial.midpoint)
-                > conveyor.window_downstream):
-            # Even the best case is past the window: late by the time the robot needs more.
-            _raise_missed(trial.lam + speed * (trial.leg.duration - trial.midpoint),
-                          conveyor, speed)
         following = search.propose(trial)
         if following is None:
             break
@@ -900,6 +897,7 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
         end = exit_motion.state_at(np.array([duration]))[0][0]
     else:
         trajectory = _hold(trajectory, place_dwell)
+    trajectory = _on_whole_nanoseconds(trajectory)
     validate_jtc(trajectory, config.joint_names)
     legs = (approach, transfer)
     metrics = {f'transfer.{key}': value for key, value in transfer.summary().items()
@@ -920,6 +918,25 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
     })
     return BeltCyclePlan(legs, trajectory, metrics, np.asarray(end, dtype=float), intercept,
                          start_time)
+
+
+def _on_whole_nanoseconds(trajectory):
+    """
+    Return ``trajectory`` with its points moved along the motion to whole nanoseconds.
+
+    The message carries whole nanoseconds: rounding the times of a belt cycle's points,
+    states unchanged, by up to 0.5 ns made JTC's quintic reach 1.1-2.6 times the planned jerk
+    across its 0.1 ms segments at high joint speed. Each point is moved to its rounded time
+    by the Taylor step of its own state instead (position by v dt + a dt^2 / 2, velocity by
+    a dt; the unknown joint jerk changes them by less than 1e-12).
+    """
+    times = np.round(trajectory.time_from_start * 1e9) * 1e-9
+    shift = (times - trajectory.time_from_start)[:, np.newaxis]
+    positions = trajectory.positions + trajectory.velocities * shift \
+        + 0.5 * trajectory.accelerations * shift ** 2
+    velocities = trajectory.velocities + trajectory.accelerations * shift
+    return replace(trajectory, time_from_start=times, positions=positions,
+                   velocities=velocities)
 
 
 def next_belt_pick(start, start_time, candidates, place, config=None, conveyor=None, *,
