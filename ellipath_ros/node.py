@@ -833,7 +833,7 @@ def _delayed_belt_start(motion, delay, frame_id):
     """
     plan = motion.details['plan']
     wait = plan.intercept.wait if plan.intercept is not None else 0.0
-    # Whole nanoseconds, as the points' times (see conveyor._on_whole_nanoseconds).
+    # Whole nanoseconds, as the points' times (see joint_trajectory.on_whole_nanoseconds).
     delay = math.ceil(delay * 1e9) * 1e-9
     if delay >= wait - MIN_WAIT_LEFT:
         return None

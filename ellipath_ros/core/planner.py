@@ -34,7 +34,8 @@ from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
     check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData, minimal_knots,
-    MotionSamples, quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
+    MotionSamples, on_whole_nanoseconds, quintic_interpolate, quintic_positions,
+    sample_joint_trajectory, validate_jtc)
 from .kinematics import (
     DeltaGeometry, forward_kinematics, inverse_kinematics, joint_velocities, JointLimits)
 from .limits import CartesianLimits
@@ -599,7 +600,7 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
         trajectory = _concatenate(_hold(approach.joint_trajectory, pick_dwell), trajectory)
     elif pick_dwell > 0.0:
         trajectory = _concatenate(_hold(_rest_point(trajectory), pick_dwell), trajectory)
-    trajectory = _hold(trajectory, place_dwell)
+    trajectory = on_whole_nanoseconds(_hold(trajectory, place_dwell))
     validate_jtc(trajectory, config.joint_names)
     plan_time = time.perf_counter() - started
     return CyclePlan(legs, trajectory, _LazyMetrics(functools.partial(
