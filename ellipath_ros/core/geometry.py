@@ -343,6 +343,31 @@ class _ParametricArc:
         kappa_t = cross_t / sigma ** 3 - 3.0 * cross * sigma_t / sigma ** 4
         return kappa, -kappa_t / sigma
 
+    def curvature_on_grid(self, samples):
+        """
+        Return t at ``samples`` even steps from pi to 0, kappa and dkappa/ds there, each (N,).
+
+        The dense grid of ``_DENSE_SAMPLES`` is computed once per arc and shared
+        (its tightest point and the time-optimal scan's table both use it); the
+        arrays are read-only.
+        """
+        if samples == _DENSE_SAMPLES:
+            return self._dense_curvature
+        return self._curvature_grid(samples)
+
+    @functools.cached_property
+    def _dense_curvature(self):
+        """Return the curvature grid of ``_DENSE_SAMPLES``, computed once."""
+        return self._curvature_grid(_DENSE_SAMPLES)
+
+    def _curvature_grid(self, samples):
+        """Return (t, kappa, dkappa/ds) on ``samples`` even steps of t, read-only."""
+        t = np.linspace(math.pi, 0.0, samples)
+        grid = (t,) + tuple(self.curvature_and_rate(t))
+        for values in grid:
+            values.setflags(write=False)
+        return grid
+
     @property
     def length(self):
         """Arc length from T1 to T2 [m] (the table's total)."""
@@ -608,8 +633,7 @@ class BlendedArc(_ParametricArc):
     @functools.cached_property
     def _tightest(self):
         """(t, kappa) of the largest curvature on a dense grid, computed once."""
-        t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
-        kappa = self.curvature_and_rate(t)[0]
+        t, kappa, _ = self.curvature_on_grid(_DENSE_SAMPLES)
         index = int(np.argmax(kappa))
         return float(t[index]), float(kappa[index])
 

@@ -96,7 +96,7 @@ class _ArcPlanner:
         # Cells no longer than the smallest radius of curvature (the arc may be a needle).
         intervals = int(min(_TABLE_INTERVALS_MAX, max(_TABLE_INTERVALS, 2 ** math.ceil(
             math.log2(self.length / bend.min_radius)))))
-        t = np.linspace(math.pi, 0.0, 2 * intervals + 1)
+        t, kappa_t, kappa_s_t = bend.curvature_on_grid(2 * intervals + 1)
         sigma = bend.speed(t)
         # Arc length by Simpson on pairs of intervals, scaled to the exact length.
         pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (math.pi / len(sigma))
@@ -104,7 +104,6 @@ class _ArcPlanner:
                         np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0)))
         s_t *= self.length / s_t[-1]
         grid = np.linspace(0.0, self.length, intervals + 1)
-        kappa_t, kappa_s_t = bend.curvature_and_rate(t)
         # The bend never turns the other way; a G2 end's 0 may round to -1e-14.
         kappa = np.maximum(np.interp(grid, s_t, kappa_t), 0.0)
         kappa_s = np.interp(grid, s_t, kappa_s_t)
