@@ -769,16 +769,18 @@ def _transition_distance(ellipse, span, at_t1):
     u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
     t = math.pi - span * u if at_t1 else span * u
     offset = ellipse.l * span ** 2 * _blend_shape(u)[0]
-    bent = ellipse.point(t)
-    bent[:, 0] += -offset if at_t1 else offset
+    # Component arrays, not (N, 2) stacks: this runs a few dozen times per path.
+    (bent_x, bent_y), _, _, _ = ellipse.components(t)
+    bent_x = bent_x - offset if at_t1 else bent_x + offset
     foot = t
     for _ in range(_BLEND_FOOT_STEPS):
-        point, slope = ellipse.point(foot), ellipse.derivative(foot)
-        gap = point - bent
+        (x, y), (slope_x, slope_y), _, _ = ellipse.components(foot)
+        gap_x, gap_y = x - bent_x, y - bent_y
         # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
-        rate = np.einsum('ij,ij->i', slope, slope) - np.einsum('ij,ij->i', gap, point)
-        foot = np.clip(foot - np.einsum('ij,ij->i', gap, slope) / rate, 0.0, math.pi)
-    distance = np.linalg.norm(ellipse.point(foot) - bent, axis=1)
+        rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
+        foot = np.clip(foot - (gap_x * slope_x + gap_y * slope_y) / rate, 0.0, math.pi)
+    (x, y), _, _, _ = ellipse.components(foot)
+    distance = np.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
     return float(np.minimum(distance, np.abs(offset)).max())
 
 
