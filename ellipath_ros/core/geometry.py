@@ -962,22 +962,24 @@ class PickPlacePath:
         curvature = np.zeros((count, 3))
         rate = np.zeros((count, 3))
         _, s_t1, s_t2, _ = self.segment_ends
-        lift = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
+        lift_mask = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
+        descent_mask = (s >= s_t2) & ~lift_mask & (self.segment_lengths[2] > 0.0)
+        on_arc_mask = ~(lift_mask | descent_mask)
+        lift, descent, on_arc = (_selector(mask) for mask in
+                                 (lift_mask, descent_mask, on_arc_mask))
         position[lift] = self.pick
         position[lift, 2] += s[lift]
         tangent[lift, 2] = 1.0
-        descent = (s >= s_t2) & ~lift & (self.segment_lengths[2] > 0.0)
         position[descent] = self.tangent_2
         position[descent, 2] -= s[descent] - s_t2
         tangent[descent, 2] = -1.0
-        on_arc = ~(lift | descent)
-        if on_arc.any():
+        if on_arc_mask.any():
             self._evaluate_arc(s[on_arc] - s_t1, on_arc, position, tangent, curvature, rate)
         return PathSamples(position, tangent, curvature, rate)
 
     def _evaluate_arc(self, s_arc, mask, position, tangent, curvature, rate):
         """
-        Fill the bend samples: derivatives by s from those by t.
+        Fill the bend samples (rows ``mask``): derivatives by s from those by t.
 
         With g = ds/dt = -sigma, sigma = |dP/dt| and P_n the n-th derivative by
         t: r_s = P_1 / g, r_ss = (P_2 - g' r_s) / g**2 and
@@ -1006,6 +1008,19 @@ class PickPlacePath:
             block[:, 2] += vertical
             out[mask] = block
         position[mask] += self.midpoint
+
+
+def _selector(mask):
+    """
+    Return the rows where ``mask`` (N,) holds: a slice if they are contiguous, else indices.
+
+    Samples sorted by length (the usual case) fall into one run per segment,
+    and writing a slice of rows costs about half as much as a boolean mask.
+    """
+    index = np.flatnonzero(mask)
+    if index.size and index[-1] - index[0] + 1 == index.size:
+        return slice(int(index[0]), int(index[-1]) + 1)
+    return index
 
 
 def require_coordinates(name, point):
