@@ -154,9 +154,9 @@ def _as_rows(name, value):
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidInputError(
             f'{name}: expected an array of shape (N, 3) or (3,), got shape {array.shape}')
-    finite = np.isfinite(array).all(axis=1)
-    if not finite.all():
-        index = int(np.argmin(finite))
+    # The whole-array test first: a per-row reduction over 3 columns costs ten times as much.
+    if not np.isfinite(array).all():
+        index = int(np.argmin(np.isfinite(array).all(axis=1)))
         raise InvalidInputError(
             f'{name}[{index}]: expected finite values, got {_fmt(array[index])}')
     return array, single
@@ -199,6 +199,10 @@ def _solve_ik(points, geometry):
 def _ik_failure(points, geometry, q, discriminant, u, w, name):
     """Return the error for the first sample IK cannot serve, or None."""
     above = points[:, 2] >= 0.0
+    # Whole-array tests first (cheap); the rows are found only for an error.
+    if not (above.any() or discriminant.min() < 0.0 or q.min() < geometry.joint_min
+            or q.max() > geometry.joint_max):
+        return None
     outside = (discriminant < 0.0).any(axis=1)
     beyond = ((q < geometry.joint_min) | (q > geometry.joint_max)).any(axis=1)
     bad = above | outside | beyond
@@ -434,8 +438,9 @@ def _ik_diagonal(forearm, d_elbow, geometry, name):
     """Return ``s_i . b_i`` (N, 3), raising at the first IK singularity."""
     diagonal = _dot(forearm, d_elbow)
     scale = geometry.upper_arm * geometry.forearm
-    singular = (np.abs(diagonal) < _SINGULARITY_TOLERANCE * scale).any(axis=1)
-    if singular.any():
+    near_zero = np.abs(diagonal) < _SINGULARITY_TOLERANCE * scale
+    if near_zero.any():
+        singular = near_zero.any(axis=1)
         index = int(np.argmax(singular))
         arm = int(np.argmin(np.abs(diagonal[index])))
         raise _unreachable(
