@@ -39,6 +39,7 @@ from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import joint_motion
+from ellipath_ros.core.kinematics import largest_magnitude_per_row
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -679,8 +680,8 @@ class MotionSamples:
         """
         values = np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
                                   (self.velocity, self.acceleration, self.jerk)]
-                                 + [np.abs(self.qdot).max(axis=1),
-                                    np.abs(self.qddot).max(axis=1)])
+                                 + [largest_magnitude_per_row(self.qdot),
+                                    largest_magnitude_per_row(self.qddot)])
         first = np.searchsorted(self.times, times[:-1], side='left')
         last = np.searchsorted(self.times, times[1:], side='right')
         # reduceat over [first, last) per interval; an interval without a sample of its own

@@ -423,6 +423,17 @@ def _arm_vectors(points, q, geometry):
     return forearm, d_elbow, dd_elbow
 
 
+def largest_magnitude_per_row(values):
+    """
+    Return max(|values[n, 0]|, |values[n, 1]|, |values[n, 2]|) per row n of (N, 3), (N,).
+
+    The same numbers as ``np.abs(values).max(axis=1)`` at a fraction of its cost
+    (a reduction over 3 columns is mostly overhead).
+    """
+    magnitude = np.abs(values)
+    return np.maximum(np.maximum(magnitude[:, 0], magnitude[:, 1]), magnitude[:, 2])
+
+
 def _dot(first, second):
     """Per-arm dot product of two vectors given per coordinate, (N, 3)."""
     return first[0] * second[0] + first[1] * second[1] + first[2] * second[2]

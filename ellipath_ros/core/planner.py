@@ -37,7 +37,8 @@ from .joint_trajectory import (
     MotionSamples, on_whole_nanoseconds, quintic_interpolate, quintic_positions,
     sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_velocities, JointLimits)
+    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
+    largest_magnitude_per_row)
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
@@ -294,7 +295,7 @@ def _check_reach_and_speed_cap(path, config):
     q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
     dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
     caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
-        np.abs(dq_ds).max(axis=1), 1e-12)
+        largest_magnitude_per_row(dq_ds), 1e-12)
 
     def cap(query):
         return np.interp(query, s, caps)

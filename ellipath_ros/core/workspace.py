@@ -173,7 +173,8 @@ class SafeWorkspace:
         array = np.atleast_2d(array)
         with np.errstate(invalid='ignore'):
             radial = np.hypot(array[:, 0], array[:, 1])
-            ok = (np.isfinite(array).all(axis=1)
+            # Per column: a reduction over 3 columns costs several times as much.
+            ok = (np.isfinite(array[:, 0]) & np.isfinite(array[:, 1]) & np.isfinite(array[:, 2])
                   & (radial <= self.radius + tolerance)
                   & (array[:, 2] >= self.z_min - tolerance)
                   & (array[:, 2] <= self.z_max + tolerance)
