@@ -258,7 +258,7 @@ class _ParametricArc:
     """
     Arc-length bookkeeping of a plane curve P(t), t from pi (T1) to 0 (T2).
 
-    Subclasses provide ``speed(t)``, ``derivatives(t)`` and ``_breaks()``
+    Subclasses provide ``speed(t)``, ``derivatives(t)``, ``components(t)`` and ``_breaks()``
     (parameters where the curve's derivatives jump); this gives ``s_from_t``
     and ``t_from_s``. The table is built once per curve, when first needed
     (the curve is frozen): the arc length at the panel bounds by Gauss-Legendre
@@ -334,11 +334,12 @@ class _ParametricArc:
         kappa = (x' y'' - y' x'') / |P'|**3 (positive: the arc bends towards the
         centre), s growing from T1 (ds/dt = -|P'|).
         """
-        _, d1, d2, d3 = self.derivatives(t)
-        sigma = np.linalg.norm(d1, axis=-1)
-        cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-        cross_t = d1[:, 0] * d3[:, 1] - d1[:, 1] * d3[:, 0]
-        sigma_t = np.einsum('ij,ij->i', d1, d2) / sigma
+        # Component arrays, not (N, 2) stacks and reductions over 2 columns: the same sums.
+        _, (x1, y1), (x2, y2), (x3, y3) = self.components(np.asarray(t, dtype=float))
+        sigma = np.sqrt(x1 * x1 + y1 * y1)
+        cross = x1 * y2 - y1 * x2
+        cross_t = x1 * y3 - y1 * x3
+        sigma_t = (x1 * x2 + y1 * y2) / sigma
         kappa = cross / sigma ** 3
         kappa_t = cross_t / sigma ** 3 - 3.0 * cross * sigma_t / sigma ** 4
         return kappa, -kappa_t / sigma
