@@ -68,6 +68,7 @@ current values, and an invalid change is refused with its reason while the previ
 configuration stays in force.
 """
 
+import collections
 import dataclasses
 import math
 import os
@@ -179,10 +180,14 @@ WORKER_POLL = 0.1
 # interval (5 ms by default): 0.5 ms bounds that delay of the release.
 SWITCH_INTERVAL = 0.0005
 # A belt pick starts at a time planned in advance (the intercept depends on it): at least this
-# many times the last belt plan's duration after the plan starts (while idle), never less
-# than BELT_LEAD_MIN, and BELT_START_MARGIN after the motion queued before it, which absorbs
-# the release thread's delay, so that the planned start is still ahead at release.
+# many times the median duration of the last BELT_PLAN_TIMES belt plans (missed ones
+# included) after the plan starts (while idle), never less than BELT_LEAD_MIN, and
+# BELT_START_MARGIN after the motion queued before it, which absorbs the release thread's
+# delay, so that the planned start is still ahead at release. The median, over every attempt:
+# with the last successful plan's duration alone, one slow plan (1.5 s) set a 3 s lead that
+# made every later object missed, and missed plans never lowered it again.
 BELT_LEAD_FACTOR = 2.0
+BELT_PLAN_TIMES = 5
 BELT_LEAD_MIN = 0.1  # s
 BELT_START_MARGIN = 0.02  # s
 # The duration of a belt plan assumed before the first one has been timed [s].
@@ -256,7 +261,9 @@ class EllipathNode(Node):
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self._conveyor_twist = None  # (velocity (3,), time.monotonic() at arrival)
-        self._belt_plan_time = BELT_PLAN_TIME_GUESS  # duration of the last belt plan [s]
+        # Durations of the last belt plans [s], missed ones included (see BELT_PLAN_TIMES).
+        self._belt_plan_times = collections.deque([BELT_PLAN_TIME_GUESS],
+                                                  maxlen=BELT_PLAN_TIMES)
         self.create_service(Trigger, '~/clear_queue', self._on_clear_queue)
         self._trajectory_publisher = self.create_publisher(
             JointTrajectory, 'joint_trajectory', depth)
@@ -538,11 +545,13 @@ class EllipathNode(Node):
         if conveyor.moving:
             start_time = (self._belt_start(start_source) if belt_start is None
                           else belt_start)
-            plan = plan_belt_cycle(start, request.pick, request.place, settings.planner,
-                                   conveyor, pick_dwell=settings.pick_dwell,
-                                   place_dwell=settings.place_dwell,
-                                   latch_time=request.latch_time, start_time=start_time)
-            self._belt_plan_time = time.perf_counter() - started
+            try:
+                plan = plan_belt_cycle(start, request.pick, request.place, settings.planner,
+                                       conveyor, pick_dwell=settings.pick_dwell,
+                                       place_dwell=settings.place_dwell,
+                                       latch_time=request.latch_time, start_time=start_time)
+            finally:
+                self._belt_plan_times.append(time.perf_counter() - started)
             details = {'belt_start': start_time, 'belt_velocity': conveyor.velocity}
         else:
             plan = plan_cycle(start, request.pick, request.place, settings.planner,
@@ -558,6 +567,10 @@ class EllipathNode(Node):
             details={'message': message, 'plan': plan, 'metrics': plan.metrics,
                      'start_source': start_source, **details})
 
+    def _belt_lead(self):
+        """Return how far ahead of now an idle belt pick planned now starts [s]."""
+        return max(BELT_LEAD_MIN, BELT_LEAD_FACTOR * float(np.median(self._belt_plan_times)))
+
     def _belt_start(self, start_source):
         """
         Return when a belt pick planned now will start (node clock, s).
@@ -567,7 +580,7 @@ class EllipathNode(Node):
         """
         now_clock = time.monotonic()
         now = self.get_clock().now().nanoseconds * 1e-9
-        start = now + max(BELT_LEAD_MIN, BELT_LEAD_FACTOR * self._belt_plan_time)
+        start = now + self._belt_lead()
         if start_source == 'queue_tail':
             queue_end = now + self._sequencer.predicted_end(now_clock) - now_clock
             tail = self._sequencer.tail_motion()
@@ -730,7 +743,7 @@ class EllipathNode(Node):
         reason = ('its planned start has passed' if belt_start < now + settings.release_lead
                   else f'the belt velocity changed by {change:.4g} m/s')
         self.get_logger().warn(f'pair {motion.request.number}: {reason}: re-planned')
-        start = now + max(BELT_LEAD_MIN, BELT_LEAD_FACTOR * self._belt_plan_time)
+        start = now + self._belt_lead()
         return self._plan(motion.request, motion.start_position,
                           f'replanned_{motion.details["start_source"]}', settings,
                           belt_start=start)

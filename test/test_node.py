@@ -1012,6 +1012,22 @@ def test_node_reports_a_missed_object_and_publishes_nothing(make_harness):
     assert trajectory is None
 
 
+def test_one_slow_belt_plan_does_not_set_the_lead_for_good(make_harness):
+    # The idle lead is twice the median of the last belt plans, missed ones included: with the
+    # last successful plan's duration alone, one slow plan kept a 3 s lead, so every later
+    # object was planned to start after it had left the window, and missed.
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0],
+                            'tracking_window_downstream': 0.2})
+    node = harness.node
+    node._belt_plan_times.append(1.5)
+    slow_lead = node._belt_lead()
+    for _ in range(2):
+        _, stamp = node_now(harness)
+        status, _ = harness.send_pair([0.19, 0.0, -0.85], (0.15, 0.2, -0.8), stamp=stamp)
+        assert values_of(status)['kind'] == 'missed'
+    assert node._belt_lead() < 0.5 * slow_lead
+
+
 def test_node_takes_the_belt_velocity_from_a_fresh_conveyor_twist(make_harness):
     harness = make_harness({'conveyor_twist_timeout': 30.0})
     publisher = harness.client.create_publisher(TwistStamped, 'conveyor_twist', 10)
