@@ -69,7 +69,7 @@ from .joint_trajectory import check_joint_limits, on_whole_nanoseconds, validate
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .planner import (
-    _check_executed_workspace, _concatenate, _excess_factor, _hold, _joint_points,
+    _check_executed_workspace, _concatenate, _cycle_inputs, _excess_factor, _hold, _joint_points,
     _QUINTIC_CHECK_SAMPLES, _rest_point, _SAME_POINT, CyclePlan, executed_bounds,
     EXECUTED_KEYS, LegPlan, plan_cycle, PlannerConfig)
 from .settings import default_of, validate
@@ -799,11 +799,8 @@ def plan_belt_cycle(start, pick, place, config=None, conveyor=None, *, pick_dwel
     """
     config = config or PlannerConfig()
     conveyor = conveyor or Conveyor()
-    start = require_point('start', start)
-    pick = require_point('pick', pick)
-    place = require_point('place', place)
-    pick_dwell = validate('pick_dwell', pick_dwell)
-    place_dwell = validate('place_dwell', place_dwell)
+    start, pick, place, pick_dwell, place_dwell = _cycle_inputs(
+        start, pick, place, pick_dwell, place_dwell)
     latch_time = require_finite('latch_time', latch_time)
     start_time = require_finite('start_time', start_time)
     if not conveyor.moving:

@@ -30,6 +30,7 @@ Arrays: times have shape (K,) [s]; positions, velocities and accelerations (K, 3
 """
 
 from dataclasses import dataclass
+import functools
 import math
 from typing import Protocol
 
@@ -678,10 +679,7 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
-        values = np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
-                                  (self.velocity, self.acceleration, self.jerk)]
-                                 + [largest_magnitude_per_row(self.qdot),
-                                    largest_magnitude_per_row(self.qddot)])
+        values = self._peak_values
         first = np.searchsorted(self.times, times[:-1], side='left')
         last = np.searchsorted(self.times, times[1:], side='right')
         # reduceat over [first, last) per interval; an interval without a sample of its own
@@ -689,6 +687,15 @@ class MotionSamples:
         ends = np.maximum(last, first + 1)
         bounds = np.ravel(np.column_stack((first, ends)))
         return np.maximum.reduceat(np.vstack((values, values[-1:])), bounds, axis=0)[::2]
+
+    @functools.cached_property
+    def _peak_values(self):
+        """Per-sample TCP speed, acceleration, jerk norms, largest |q_dot|, |q_ddot|, (N, 5)."""
+        # Built once: every knot round asks for the peaks of new intervals of the same samples.
+        return np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
+                                (self.velocity, self.acceleration, self.jerk)]
+                               + [largest_magnitude_per_row(self.qdot),
+                                  largest_magnitude_per_row(self.qddot)])
 
     def states(self, times, low=None, high=None):
         """

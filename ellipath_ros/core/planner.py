@@ -583,11 +583,8 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
     """
     started = time.perf_counter()
     config = config or PlannerConfig()
-    start = require_point('start', start)
-    pick = require_point('pick', pick)
-    place = require_point('place', place)
-    pick_dwell = validate('pick_dwell', pick_dwell)
-    place_dwell = validate('place_dwell', place_dwell)
+    start, pick, place, pick_dwell, place_dwell = _cycle_inputs(
+        start, pick, place, pick_dwell, place_dwell)
     transfer = plan_transfer(pick, place, config)
     legs = (transfer,)
     trajectory = transfer.joint_trajectory
@@ -606,6 +603,13 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
     plan_time = time.perf_counter() - started
     return CyclePlan(legs, trajectory, _LazyMetrics(functools.partial(
         _cycle_metrics, legs, trajectory, plan_time)), place.copy())
+
+
+def _cycle_inputs(start, pick, place, pick_dwell, place_dwell):
+    """Return the checked (start, pick, place, pick_dwell, place_dwell) of a cycle request."""
+    return (require_point('start', start), require_point('pick', pick),
+            require_point('place', place), validate('pick_dwell', pick_dwell),
+            validate('place_dwell', place_dwell))
 
 
 def _cycle_metrics(legs, trajectory, plan_time):
