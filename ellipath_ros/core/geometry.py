@@ -767,22 +767,43 @@ def _transition_distance(ellipse, span, at_t1):
     (P(t) - Q) . P'(t) = 0 reach from the sample's own parameter (either is a
     point of the paper's path).
     """
-    u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
+    u, shape = _distance_grid()
     t = math.pi - span * u if at_t1 else span * u
-    offset = ellipse.l * span ** 2 * _blend_shape(u)[0]
-    # Component arrays, not (N, 2) stacks: this runs a few dozen times per path.
-    (bent_x, bent_y), _, _, _ = ellipse.components(t)
-    bent_x = bent_x - offset if at_t1 else bent_x + offset
+    offset = ellipse.l * span ** 2 * shape
+    # This runs a dozen times per path: the ellipse's formulas (components) written out on
+    # component arrays, only what is used, and the first foot step starts where the bent
+    # curve's samples already are.
+    l_, h, k = ellipse.l, ellipse.h, ellipse.k
+    cos_t, sin_t = np.cos(t), np.sin(t)
+    x, y = l_ * cos_t, h * cos_t + k * sin_t
+    bent_x = x - offset if at_t1 else x + offset
+    bent_y = y
     foot = t
-    for _ in range(_BLEND_FOOT_STEPS):
-        (x, y), (slope_x, slope_y), _, _ = ellipse.components(foot)
+    for step in range(_BLEND_FOOT_STEPS):
+        if step:
+            cos_t, sin_t = np.cos(foot), np.sin(foot)
+            x, y = l_ * cos_t, h * cos_t + k * sin_t
+        slope_x, slope_y = -l_ * sin_t, k * cos_t - h * sin_t
         gap_x, gap_y = x - bent_x, y - bent_y
         # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
         rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
-        foot = np.clip(foot - (gap_x * slope_x + gap_y * slope_y) / rate, 0.0, math.pi)
-    (x, y), _, _, _ = ellipse.components(foot)
+        # minimum(maximum()) is np.clip without its dispatch cost.
+        foot = np.minimum(np.maximum(foot - (gap_x * slope_x + gap_y * slope_y) / rate, 0.0),
+                          math.pi)
+    cos_t, sin_t = np.cos(foot), np.sin(foot)
+    x, y = l_ * cos_t, h * cos_t + k * sin_t
     distance = np.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
     return float(np.minimum(distance, np.abs(offset)).max())
+
+
+@functools.cache
+def _distance_grid():
+    """Return the transition samples u (read-only) and the shape f(u) there, computed once."""
+    u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
+    shape = _blend_shape(u)[0]
+    u.setflags(write=False)
+    shape.setflags(write=False)
+    return u, shape
 
 
 def require_finite_h(h):
