@@ -973,35 +973,51 @@ class PickPlacePath:
             Position, unit tangent and the second and third derivatives by s.
 
         """
+        return PathSamples(*(np.ascontiguousarray(rows.T) for rows in self.rows_at_lengths(s)))
+
+    def rows_at_lengths(self, s):
+        """
+        Return :meth:`at_lengths` with each array as rows (3, N), one per coordinate.
+
+        Products with per-sample factors (N,) then run along the samples: on
+        (N, 3) arrays times (N, 1) factors NumPy's innermost loop runs over 3
+        coordinates, several times slower.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Position, unit tangent, curvature vector d2p/ds2 and d3p/ds3, each (3, N).
+
+        """
         s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, self.length)
         count = s.shape[0]
         if self.arc is None:
-            line = (self.place - self.pick) / self.length
-            return PathSamples(self.pick + s[:, None] * line, np.tile(line, (count, 1)),
-                               np.zeros((count, 3)), np.zeros((count, 3)))
-        position = np.empty((count, 3))
-        tangent = np.zeros((count, 3))
-        curvature = np.zeros((count, 3))
-        rate = np.zeros((count, 3))
+            line = ((self.place - self.pick) / self.length)[:, None]
+            return (self.pick[:, None] + line * s, np.repeat(line, count, axis=1),
+                    np.zeros((3, count)), np.zeros((3, count)))
+        position = np.empty((3, count))
+        tangent = np.zeros((3, count))
+        curvature = np.zeros((3, count))
+        rate = np.zeros((3, count))
         _, s_t1, s_t2, _ = self.segment_ends
         lift_mask = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
         descent_mask = (s >= s_t2) & ~lift_mask & (self.segment_lengths[2] > 0.0)
         on_arc_mask = ~(lift_mask | descent_mask)
         lift, descent, on_arc = (_selector(mask) for mask in
                                  (lift_mask, descent_mask, on_arc_mask))
-        position[lift] = self.pick
-        position[lift, 2] += s[lift]
-        tangent[lift, 2] = 1.0
-        position[descent] = self.tangent_2
-        position[descent, 2] -= s[descent] - s_t2
-        tangent[descent, 2] = -1.0
+        position[:2, lift] = self.pick[:2, None]
+        position[2, lift] = self.pick[2] + s[lift]
+        tangent[2, lift] = 1.0
+        position[:2, descent] = self.tangent_2[:2, None]
+        position[2, descent] = self.tangent_2[2] - (s[descent] - s_t2)
+        tangent[2, descent] = -1.0
         if on_arc_mask.any():
             self._evaluate_arc(s[on_arc] - s_t1, on_arc, position, tangent, curvature, rate)
-        return PathSamples(position, tangent, curvature, rate)
+        return position, tangent, curvature, rate
 
     def _evaluate_arc(self, s_arc, mask, position, tangent, curvature, rate):
         """
-        Fill the bend samples (rows ``mask``): derivatives by s from those by t.
+        Fill the bend samples (columns ``mask`` of the (3, N) rows): derivatives by s from t.
 
         With g = ds/dt = -sigma, sigma = |dP/dt| and P_n the n-th derivative by
         t: r_s = P_1 / g, r_ss = (P_2 - g' r_s) / g**2 and
@@ -1023,21 +1039,22 @@ class PickPlacePath:
         rate_x = (x3 - g2 * tangent_x - three_g_g1 * curvature_x) * g_inv_3
         rate_y = (y3 - g2 * tangent_y - three_g_g1 * curvature_y) * g_inv_3
         direction = self.direction
+        # The base frame's x, y are along the paper frame's x; its z is the paper's y.
         for out, along, vertical in ((position, x, y), (tangent, tangent_x, tangent_y),
                                      (curvature, curvature_x, curvature_y),
                                      (rate, rate_x, rate_y)):
-            block = along[:, None] * direction
-            block[:, 2] += vertical
-            out[mask] = block
-        position[mask] += self.midpoint
+            out[0, mask] = along * direction[0]
+            out[1, mask] = along * direction[1]
+            out[2, mask] = along * direction[2] + vertical
+        position[:, mask] += self.midpoint[:, None]
 
 
 def _selector(mask):
     """
-    Return the rows where ``mask`` (N,) holds: a slice if they are contiguous, else indices.
+    Return the samples where ``mask`` (N,) holds: a slice if they are contiguous, else indices.
 
     Samples sorted by length (the usual case) fall into one run per segment,
-    and writing a slice of rows costs about half as much as a boolean mask.
+    and writing a slice costs about half as much as a boolean mask.
     """
     index = np.flatnonzero(mask)
     if index.size and index[-1] - index[0] + 1 == index.size:

@@ -431,13 +431,15 @@ def _evaluate(coefficients, offset, order):
     """
     Return the polynomials (S, 6, 3) and their derivatives up to ``order`` at (S, M).
 
-    Computed on joint-major rows (3, S * M), each coefficient repeated per
-    sample: the same products as broadcasting (S, 1, 3) against (S, M, 1), whose
-    innermost loop runs over only 3 joints (several times slower). Each result
-    is an (S, M, 3) view of such rows.
+    Computed per joint, (3, S, M) (or (3, S) for one offset per polynomial),
+    and returned as (S, M, 3) views: the same products as broadcasting
+    (S, 1, 3) against (S, M, 1), whose innermost loop runs over only 3 joints
+    (several times slower).
     """
-    c = np.repeat(coefficients.transpose(1, 2, 0), offset.shape[1], axis=2)
-    x = offset.reshape(-1)
+    c = coefficients.transpose(1, 2, 0)
+    x = offset[:, 0]
+    if offset.shape[1] > 1:
+        c, x = c[..., np.newaxis], offset
     values = [((((c[5] * x + c[4]) * x + c[3]) * x + c[2]) * x + c[1]) * x + c[0]]
     if order >= 1:
         values.append((((5.0 * c[5] * x + 4.0 * c[4]) * x + 3.0 * c[3]) * x + 2.0 * c[2]) * x
@@ -446,8 +448,7 @@ def _evaluate(coefficients, offset, order):
         values.append(((20.0 * c[5] * x + 12.0 * c[4]) * x + 6.0 * c[3]) * x + 2.0 * c[2])
     if order >= 3:
         values.append((60.0 * c[5] * x + 24.0 * c[4]) * x + 6.0 * c[3])
-    shape = offset.shape + (3,)
-    return tuple(value.T.reshape(shape) for value in values)
+    return tuple(np.moveaxis(value, 0, -1).reshape(offset.shape + (3,)) for value in values)
 
 
 def _motion_duration(motion):

@@ -407,12 +407,11 @@ class TimedMotion:
 
 def _cartesian(path, s, v, a, j):
     """Return position, velocity, acceleration and jerk (N, 3) from the path state."""
-    samples = path.at_lengths(s)
-    tangent, curvature, rate = samples.tangent, samples.curvature, samples.curvature_rate
-    return (samples.position, v[:, None] * tangent,
-            a[:, None] * tangent + (v * v)[:, None] * curvature,
-            j[:, None] * tangent + (3.0 * v * a)[:, None] * curvature
-            + (v ** 3)[:, None] * rate)
+    # On coordinate rows (3, N): the products with the per-sample factors run along the samples.
+    position, tangent, curvature, rate = path.rows_at_lengths(s)
+    return tuple(np.ascontiguousarray(rows.T) for rows in (
+        position, v * tangent, a * tangent + (v * v) * curvature,
+        j * tangent + (3.0 * v * a) * curvature + (v ** 3) * rate))
 
 
 def _sample_times(duration, period):
