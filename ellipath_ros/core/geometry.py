@@ -787,9 +787,9 @@ def _transition_distance(ellipse, span, at_t1):
         gap_x, gap_y = x - bent_x, y - bent_y
         # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
         rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
-        # minimum(maximum()) is np.clip without its dispatch cost.
-        foot = np.minimum(np.maximum(foot - (gap_x * slope_x + gap_y * slope_y) / rate, 0.0),
-                          math.pi)
+        # np.clip(foot, 0, pi) without its dispatch cost (bounds first, as clip keeps -0.0).
+        foot = np.minimum(math.pi, np.maximum(
+            0.0, foot - (gap_x * slope_x + gap_y * slope_y) / rate))
     cos_t, sin_t = np.cos(foot), np.sin(foot)
     x, y = l_ * cos_t, h * cos_t + k * sin_t
     distance = np.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)

@@ -332,10 +332,12 @@ def _interpolated(traj, times, order):
         hold = np.zeros(times.shape, dtype=int)
         return tuple(source[hold] for source in sources)
     starts = np.arange(knots.size - 1)
-    coefficients = _quintic_coefficients(traj, starts, starts + 1)
+    # Per joint (6, 3, S): each sample's coefficients are then one contiguous gather.
+    coefficients = np.ascontiguousarray(
+        _quintic_coefficients(traj, starts, starts + 1).transpose(1, 2, 0))
     segment = np.clip(np.searchsorted(knots, times, side='right') - 1, 0, knots.size - 2)
-    offset = np.clip(times - knots[segment], 0.0, None)[:, np.newaxis]
-    values = tuple(value[:, 0] for value in _evaluate(coefficients[segment], offset, order))
+    offset = np.clip(times - knots[segment], 0.0, None)
+    values = tuple(value.T for value in _horner(coefficients[..., segment], offset, order))
     after = times >= knots[-1]
     for value, source in zip(values, sources):
         value[after] = source[-1]
@@ -431,15 +433,16 @@ def _evaluate(coefficients, offset, order):
     """
     Return the polynomials (S, 6, 3) and their derivatives up to ``order`` at (S, M).
 
-    Computed per joint, (3, S, M) (or (3, S) for one offset per polynomial),
-    and returned as (S, M, 3) views: the same products as broadcasting
-    (S, 1, 3) against (S, M, 1), whose innermost loop runs over only 3 joints
-    (several times slower).
+    Computed per joint, (3, S, M), and returned as (S, M, 3) views: the same
+    products as broadcasting (S, 1, 3) against (S, M, 1), whose innermost loop
+    runs over only 3 joints (several times slower).
     """
-    c = coefficients.transpose(1, 2, 0)
-    x = offset[:, 0]
-    if offset.shape[1] > 1:
-        c, x = c[..., np.newaxis], offset
+    values = _horner(coefficients.transpose(1, 2, 0)[..., np.newaxis], offset, order)
+    return tuple(np.moveaxis(value, 0, -1) for value in values)
+
+
+def _horner(c, x, order):
+    """Return sum c[k] x**k (c of shape (6, 3, ...)) and its derivatives up to ``order``."""
     values = [((((c[5] * x + c[4]) * x + c[3]) * x + c[2]) * x + c[1]) * x + c[0]]
     if order >= 1:
         values.append((((5.0 * c[5] * x + 4.0 * c[4]) * x + 3.0 * c[3]) * x + 2.0 * c[2]) * x
@@ -448,7 +451,7 @@ def _evaluate(coefficients, offset, order):
         values.append(((20.0 * c[5] * x + 12.0 * c[4]) * x + 6.0 * c[3]) * x + 2.0 * c[2])
     if order >= 3:
         values.append((60.0 * c[5] * x + 24.0 * c[4]) * x + 6.0 * c[3])
-    return tuple(np.moveaxis(value, 0, -1).reshape(offset.shape + (3,)) for value in values)
+    return values
 
 
 def _motion_duration(motion):
@@ -763,21 +766,27 @@ class MotionSamples:
         tolerances it serves (``_PLANNED_TABLE_MIN_TOLERANCE`` and up).
         """
         if self._planned is None:
-            # Of two samples at the same time (both sides of a step), the later one.
+            # Of two samples at the same time (both sides of a step), the later one. Stored as
+            # coordinate rows (3, K): the products with the per-point basis (N,) then run
+            # along the points, not across 3 coordinates.
             keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
             keep[0] = True
-            self._planned = self.times[keep], self.position[keep], self.velocity[keep]
+            self._planned = (self.times[keep], np.ascontiguousarray(self.position[keep].T),
+                             np.ascontiguousarray(self.velocity[keep].T))
         table_times, position, velocity = self._planned
-        step = np.clip(np.searchsorted(table_times, times, side='right') - 1, 0,
-                       table_times.size - 2)
-        start, width = table_times[step], table_times[step + 1] - table_times[step]
-        x = ((times - start) / width)[:, np.newaxis]
+        step = np.minimum(np.maximum(np.searchsorted(table_times, times, side='right') - 1, 0),
+                          table_times.size - 2)
+        after = step + 1
+        start = table_times[step]
+        width = table_times[after] - start
+        x = (times - start) / width
         x2, x3 = x * x, x * x * x
         # Cubic Hermite basis on [0, 1]; the velocities scale with the width.
-        return ((2.0 * x3 - 3.0 * x2 + 1.0) * position[step]
-                + (x3 - 2.0 * x2 + x) * width[:, np.newaxis] * velocity[step]
-                + (3.0 * x2 - 2.0 * x3) * position[step + 1]
-                + (x3 - x2) * width[:, np.newaxis] * velocity[step + 1])
+        rows = ((2.0 * x3 - 3.0 * x2 + 1.0) * position[:, step]
+                + (x3 - 2.0 * x2 + x) * width * velocity[:, step]
+                + (3.0 * x2 - 2.0 * x3) * position[:, after]
+                + (x3 - x2) * width * velocity[:, after])
+        return np.ascontiguousarray(rows.T)
 
 
 def _nearest_sample(sorted_times, targets):
