@@ -54,7 +54,8 @@ replaces the running trajectory at its next control cycle whatever the new ``hea
 measured state to the new first point (src/trajectory.cpp ``sample()``, lines 148-168), so a
 trajectory published while another runs cuts it short. The node therefore works in three
 stages: the subscription callbacks only validate, pair and queue (a full queue rejects the
-newest pair with a WARN status); a planning thread plans the queued pairs in arrival order,
+newest pair with a WARN status); a planning thread plans the queued pairs in arrival order
+(on a moving belt, in latch order: the earliest ``header.stamp`` first),
 each from the end of the motion planned before it (or, when nothing runs, from the robot:
 fresh ``joint_states``, else the end of the last trajectory, else ``home_position``) and
 holds them; a release thread publishes each held trajectory once the one before it has
@@ -494,9 +495,13 @@ class EllipathNode(Node):
     # --- planning thread ------------------------------------------------------------------
 
     def _planning_loop(self):
-        """Plan the queued pairs in arrival order until the node stops."""
+        """Plan the queued pairs in arrival (belt picks: latch) order until the node stops."""
         while not self._sequencer.stopped:
-            taken = self._sequencer.next_to_plan(WORKER_POLL)
+            # On a moving belt, the pair latched first: the core's 'latch' order (see
+            # Sequencer.take_for_planning). Planning every waiting pair to take the one whose
+            # cycle ends first ('soonest') would cost a belt plan per waiting pair per pick.
+            taken = self._sequencer.next_to_plan(
+                WORKER_POLL, by_latch=self._conveyor(self._settings).moving)
             if taken is not None:
                 self._plan_queued(*taken)
 

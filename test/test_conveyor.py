@@ -285,28 +285,72 @@ def test_zero_belt_speed_gives_exactly_the_static_plan():
                               getattr(static.joint_trajectory, name))
 
 
-def test_place_onto_a_moving_tray_and_end_at_rest():
-    with pytest.raises(InvalidInputError, match='parallel'):
-        # Belts at an angle to each other: not supported (see _transfer).
-        Conveyor(velocity=belt(0.3, 0.0), place_velocity=belt(0.2, 90.0))
-    conveyor = Conveyor(velocity=belt(0.3, 0.0), place_velocity=belt(0.2, 0.0))
-    plan = plan_belt_cycle(START, [-0.2, 0.0, -0.85], PLACE, CONFIG, conveyor,
-                           place_dwell=0.03)
+# Place belts (trays): speed [m/s] and direction (degrees from +x), the pick belt along +x at
+# 0.3 m/s: parallel, at right angles, opposite, and oblique.
+TRAYS = [(0.2, 0.0), (0.3, 90.0), (0.3, 180.0), (0.4, -135.0), (0.5, 45.0)]
+PLACE_DWELL = 0.03
+
+
+@functools.lru_cache(maxsize=None)
+def tray_case(speed, degrees):
+    """Plan a cycle from a belt at 0.3 m/s along +x onto a tray belt ``speed``, ``degrees``."""
+    conveyor = Conveyor(velocity=belt(0.3, 0.0), place_velocity=belt(speed, degrees))
+    pick = np.array([-0.2, 0.0, -0.85])
+    plan = plan_belt_cycle(START, pick, PLACE, CONFIG, conveyor, pick_dwell=DWELL,
+                           place_dwell=PLACE_DWELL, start_time=0.02)
+    return plan, pick
+
+
+@pytest.mark.parametrize('speed, degrees', TRAYS)
+def test_place_onto_a_tray_belt_at_any_angle_rides_it_and_ends_at_rest(speed, degrees):
+    plan, _ = tray_case(speed, degrees)
+    tray_velocity = belt(speed, degrees)
     motion = plan.legs[1].motion
     position, velocity, _, _ = motion.state_at(np.array([motion.duration]))
     assert np.linalg.norm(position[0] - PLACE) <= 1e-6
-    assert np.linalg.norm(velocity[0] - belt(0.2, 0.0)) <= 1e-9
+    assert np.linalg.norm(velocity[0] - tray_velocity) <= 1e-9
     trajectory = plan.joint_trajectory
     assert np.all(trajectory.velocities[-1] == 0.0)
-    # Executed: the TCP rides on the tray through the place dwell, then lifts off vertically.
-    arrival = plan.metrics['belt.pick_after_start'] + motion.duration
-    t = arrival + np.linspace(0.0, 0.03 + 0.01, 81)
-    tray = PLACE + np.outer(t - arrival, belt(0.2, 0.0))
-    offset = executed(plan, t) - tray
+    # Executed: on the place target at the place instant, on the tray through the place dwell
+    # (position and speed), vertical relative to it during the descent and the lift.
+    arrival = pick_instant(plan) + DWELL + motion.duration
+    assert np.linalg.norm(executed(plan, [arrival])[0] - PLACE) <= ON_OBJECT
+    descent = motion.relative.segment_durations[2]
+    t = arrival + np.linspace(-descent, PLACE_DWELL + 0.01, 161)
+    offset = executed(plan, t) - (PLACE + np.outer(t - arrival, tray_velocity))
     assert np.abs(offset[:, :2]).max() <= ON_OBJECT
-    assert np.abs(offset[t <= arrival + 0.03, 2]).max() <= ON_OBJECT
+    assert offset[0, 2] >= CONFIG.place_clearance - ON_OBJECT
+    dwelling = (t >= arrival) & (t <= arrival + PLACE_DWELL)
+    assert np.abs(offset[dwelling, 2]).max() <= ON_OBJECT
+    h = 1e-5
+    inside = np.linspace(arrival + h, arrival + PLACE_DWELL - h, 101)
+    relative = (executed(plan, inside + h) - executed(plan, inside - h)) / (2 * h)
+    assert np.linalg.norm(relative - tray_velocity, axis=1).max() <= RELATIVE_SPEED
     found = dense_check(trajectory, CONFIG.geometry, step=4e-6, spread=5)
     assert_within_limits(found, CONFIG)
+    # The belts' speeds count: the motion is never slower than the faster belt it carries at.
+    assert found['peak_speed'] > max(speed, 0.3)
+
+
+@pytest.mark.parametrize('speed, degrees', TRAYS)
+def test_onto_an_angled_tray_belt_the_pick_dwell_is_extended_on_the_object(speed, degrees):
+    # At an angle, the transfer's timing error is absorbed by the frame's change and a longer
+    # pick dwell together; on a parallel belt by the change alone.
+    plan, pick = tray_case(speed, degrees)
+    extension = plan.metrics['belt.pick_dwell_extension']
+    assert extension >= 0.0
+    if degrees in (0.0, 180.0):
+        assert extension == 0.0
+    # Executed: on the object through the dwell and its extension, then lifted vertically
+    # relative to it over the whole clearance.
+    t_pick = pick_instant(plan)
+    lift_off = t_pick + DWELL + extension
+    lift = plan.legs[1].motion.relative.segment_durations[0]
+    t = np.linspace(t_pick, lift_off + lift, 201)
+    offset = executed(plan, t) - object_at(pick, belt(0.3, 0.0), plan, t)
+    assert np.abs(offset[:, :2]).max() <= ON_OBJECT
+    assert np.abs(offset[t <= lift_off, 2]).max() <= ON_OBJECT
+    assert offset[-1, 2] >= CONFIG.pick_clearance - ON_OBJECT
 
 
 def test_frame_ramp_integrates_its_velocity_and_keeps_its_share():

@@ -29,7 +29,8 @@ ended:
 * intake (:meth:`Sequencer.submit`, fast, called from subscription callbacks) puts a pair in a
   bounded queue, or rejects the newest pair when the queue is full;
 * planning (:meth:`Sequencer.next_to_plan`, one worker) plans the pairs one by one in arrival
-  order, each from the end of the motion planned before it, and holds the result;
+  order (belt picks: in latch order), each from the end of the motion planned before it, and
+  holds the result;
 * release (:meth:`Sequencer.wait_for_release`, one worker) hands the oldest held motion over
   when the motion released before it has ended at the latest (see :class:`Release`), or, with
   ``ahead`` stamps, as soon as that motion rests in its final dwell, stamped to start exactly
@@ -506,9 +507,15 @@ class Sequencer:
 
     # --- planning ---------------------------------------------------------------------------
 
-    def take_for_planning(self, now=None):
+    def take_for_planning(self, now=None, by_latch=False):
         """
         Take the oldest waiting pair for planning, without blocking.
+
+        With ``by_latch`` (belt picks), the pair latched first instead (its ``latch_time``;
+        pairs latched together, or without a latch time, in arrival order): the rule of
+        :func:`~.conveyor.next_belt_pick`'s ``latch`` order, the first object in latch order
+        that can still be caught, the others waiting their turn; one the robot can no longer
+        catch is rejected by its plan, with its status.
 
         Returns
         -------
@@ -522,7 +529,11 @@ class Sequencer:
         with self._condition:
             if not self._waiting or self._planning is not None:
                 return None
-            request = self._waiting.popleft()
+            if by_latch:
+                request = min(self._waiting, key=_latch_order)
+                self._waiting.remove(request)
+            else:
+                request = self._waiting.popleft()
             self._planning, self._planning_cancelled = request, False
             if self._held:
                 start = self._held[-1].end_position
@@ -534,12 +545,12 @@ class Sequencer:
                 start = None
             return request, start
 
-    def next_to_plan(self, timeout):
+    def next_to_plan(self, timeout, by_latch=False):
         """Block up to ``timeout`` s for :meth:`take_for_planning`; None on timeout or stop."""
         deadline = time.monotonic() + timeout
         with self._condition:
             while not self._stopped:
-                taken = self.take_for_planning()
+                taken = self.take_for_planning(by_latch=by_latch)
                 if taken is not None:
                     return taken
                 remaining = deadline - time.monotonic()
@@ -727,6 +738,13 @@ class Sequencer:
         with self._condition:
             self._stopped = True
             self._condition.notify_all()
+
+
+def _latch_order(request):
+    """Return the sort key of a waiting pair in latch order (see take_for_planning)."""
+    if request.latch_time is None:
+        return (0, 0.0, request.number)
+    return (1, request.latch_time, request.number)
 
 
 def track_deviation(release, measured, measured_at, geometry):

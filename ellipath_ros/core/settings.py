@@ -247,8 +247,10 @@ SETTINGS = (
          'static picks. A fresh conveyor_twist overrides it. A pick header.stamp is the time '
          'the object was at that position (zero = on receipt)', 'conveyor'),
     _row('place_conveyor_velocity', 'double_array', (0.0, 0.0, 0.0), 'm/s',
-         'Place belt (tray) velocity in the base frame, zero or parallel to the pick belt; '
-         'zero = static places', 'conveyor'),
+         'Place belt (tray) velocity in the base frame, at any angle to the pick belt, speed '
+         'at most 2 m/s; zero = static places. The place is where the tray is at the place '
+         'instant; at an angle the pick dwell is extended a little to meet it exactly',
+         'conveyor'),
     _row('tracking_window_upstream', 'double', -0.3, 'm',
          'Tracking window: upstream limit along the pick belt direction (TCP position '
          'projected on the unit belt velocity); an object upstream of it is picked as it '
