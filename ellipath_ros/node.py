@@ -30,8 +30,8 @@ Conveyor tracking (``conveyor_velocity`` or a fresh ``conveyor_twist``, geometry
 TwistStamped; :mod:`ellipath_ros.core.conveyor`): a pick's ``header.stamp`` is when the object
 was there; the pair is planned for a known start, published stamped at it (the controller
 holds the robot until then) and re-planned at release if that start has passed or the belt
-changed; an object the robot cannot reach inside the tracking window is rejected as
-``missed``.
+changed (held pairs are planned again as soon as the planning thread sees the change); an
+object the robot cannot reach inside the tracking window is rejected as ``missed``.
 
 Only the position of a pose is used: the Delta robot has three translational degrees of
 freedom and its effector stays level, so the orientation is ignored. Poses must be in the
@@ -262,6 +262,8 @@ class EllipathNode(Node):
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self._conveyor_twist = None  # (velocity (3,), time.monotonic() at arrival)
+        # The belt velocity the held motions were last checked against (planning thread).
+        self._checked_belt_velocity = None
         # Durations of the last belt plans [s], missed ones included (see BELT_PLAN_TIMES).
         self._belt_plan_times = collections.deque([BELT_PLAN_TIME_GUESS],
                                                   maxlen=BELT_PLAN_TIMES)
@@ -497,13 +499,42 @@ class EllipathNode(Node):
     def _planning_loop(self):
         """Plan the queued pairs in arrival (belt picks: latch) order until the node stops."""
         while not self._sequencer.stopped:
+            settings = self._settings
+            conveyor = self._conveyor(settings)
+            self._requeue_stale_belt_picks(conveyor.velocity, settings)
             # On a moving belt, the pair latched first: the core's 'latch' order (see
             # Sequencer.take_for_planning). Planning every waiting pair to take the one whose
             # cycle ends first ('soonest') would cost a belt plan per waiting pair per pick.
-            taken = self._sequencer.next_to_plan(
-                WORKER_POLL, by_latch=self._conveyor(self._settings).moving)
+            taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving)
             if taken is not None:
                 self._plan_queued(*taken)
+
+    def _requeue_stale_belt_picks(self, velocity, settings):
+        """
+        Plan again the held pairs planned for a belt velocity the belt no longer has.
+
+        More than conveyor_replan_tolerance from ``velocity`` (a conveyor_twist or a parameter
+        changed it; a motion planned while the belt stood still counts as planned for zero):
+        put back with those held after it (Sequencer.requeue_held) and planned again while
+        the robot runs, rather than at release while it waits.
+        """
+        if self._checked_belt_velocity is not None and np.array_equal(
+                velocity, self._checked_belt_velocity):
+            return  # every held motion has been checked against this velocity or planned for it
+        self._checked_belt_velocity = velocity
+
+        def stale(motion):
+            planned = motion.details.get('belt_velocity', np.zeros(3))
+            return float(np.linalg.norm(velocity - planned)) > settings.conveyor_replan_tolerance
+
+        numbers = self._sequencer.requeue_held(stale)
+        if numbers:
+            text = (f'belt velocity now {np.round(velocity, 6).tolist()} m/s: held pairs '
+                    f'{numbers} planned again')
+            self.get_logger().warn(text)
+            self._publish_status(DiagnosticStatus.WARN, text, {
+                'kind': 'requeued', 'requeued_pairs': ' '.join(map(str, numbers)),
+                **self._queue_values()})
 
     def _plan_queued(self, request, start):
         """Plan one queued pair from ``start`` (None: where the robot is) and hold it."""
@@ -861,6 +892,9 @@ def _delayed_belt_start(motion, delay, frame_id):
     shortened = dataclasses.replace(trajectory, time_from_start=times)
     message = joint_trajectory_message(shortened, frame_id, Time())
     metrics = {**motion.details['metrics'], 'belt.wait': wait - delay}
+    # The same absolute instants, from the later start.
+    for key in ('belt.pick_after_start', 'belt.place_after_start'):
+        metrics[key] -= delay
     return dataclasses.replace(motion, trajectory=joint_trajectory_data(message), details={
         **motion.details, 'message': message, 'metrics': metrics,
         'belt_start': motion.details['belt_start'] + delay})

@@ -410,6 +410,19 @@ def test_belt_scenario_picks_on_the_object_and_reports_misses():
     assert 'picks/min' in format_belt_report(result)
 
 
+def test_belt_scenario_onto_an_angled_place_belt_places_on_it():
+    # Each trajectory ends with its exit off the moving tray, not at rest: the next one is
+    # handed over only once it rests (no emulated trajectory cut short).
+    result = run_belt_scenario(count=6, speed=0.3, rate=4.0, seed=3,
+                               place_velocity=(0.0, 0.3, 0.0))
+    assert failures(result) == []
+    assert result['picked'] >= 1 and result['picked'] + result['missed'] == 6
+    assert result['executed.max_tcp_to_place'] <= ON_OBJECT
+    assert result['executed.max_relative_speed_in_place_dwell'] <= RELATIVE_SPEED
+    assert result['executed.emulated_deviation_from_plans'] <= ON_OBJECT
+    assert 'place belt [0.0, 0.3, 0.0] m/s' in format_belt_report(result)
+
+
 def test_taking_the_soonest_cycle_picks_at_least_as_many_as_latch_order():
     # Streams faster than the robot: which waiting object comes next matters.
     for seed in (1, 4):
@@ -429,9 +442,10 @@ def test_belt_demo_through_the_node_picks_on_the_object_and_gives_every_outcome(
     demo.add_arguments(parser)
     # A slow belt, so that objects stay long in reach even when plans are slow on a loaded
     # machine.
+    # Onto a place belt at right angles to the pick belt.
     args = parser.parse_args(['--belt', '--objects', '4', '--rate', '1', '--seed', '3',
-                              '--belt-speed', '0.1', '--timeout', '10', '--domain-id',
-                              str(ros_domain_id)])
+                              '--belt-speed', '0.1', '--place-belt', '0', '0.1', '0',
+                              '--timeout', '10', '--domain-id', str(ros_domain_id)])
     status = demo.run_demo(args)
     output = capsys.readouterr().out
     assert 'through ellipath_node over DDS' in output
@@ -442,6 +456,7 @@ def test_belt_demo_through_the_node_picks_on_the_object_and_gives_every_outcome(
     for line in outcomes:
         assert ': picked ' in line or ': missed: ' in line and 'past the downstream' in line
     assert picked, output
+    assert 'place belt [0.0, 0.1, 0.0] m/s' in output
     # The executed TCP on the object at every pick (JTC's quintic through FK).
     for line in picked:
         assert float(line.split('executed TCP to object ')[1].split()[0]) <= ON_OBJECT * 1e3

@@ -981,7 +981,7 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
     leg, frame, extension = _transfer(lift_off, place, conveyor, config, limits,
                                       (config.pick_clearance, config.place_clearance), leg)
     # The extension of the pick dwell: the relative motion and the frame's change start later.
-    transfer, transfer_trajectory, _ = _piece(
+    transfer, transfer_trajectory, transfer_motion = _piece(
         'transfer', leg.relative, replace(frame, start=frame.start + extension), lift_off,
         leg.delay + extension, leg.duration + extension, config, bounds)
     trajectory = _concatenate(trajectory, transfer_trajectory)
@@ -1014,6 +1014,8 @@ def _plan_pieces(start, pick, place, config, conveyor, limits, pick_dwell, place
         # Relative times: diagnostics print 9 significant digits, too few for clock times.
         'belt.pick_after_latch': intercept.pick_time - latch_time,
         'belt.pick_after_start': intercept.wait + approach_motion.duration,
+        'belt.place_after_start': (intercept.wait + approach_motion.duration + pick_dwell
+                                   + transfer_motion.duration),
         'belt.window_position': intercept.window_position,
         'belt.wait': intercept.wait,
         'belt.pick_dwell_extension': extension,

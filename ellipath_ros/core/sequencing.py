@@ -235,21 +235,26 @@ class PlannedMotion:
 
     @property
     def final_rest(self):
-        """
-        Return how long the trajectory rests at its last point before its end [s].
+        """Return how long the trajectory rests at its last point before its end [s]."""
+        return final_rest(self.trajectory)
 
-        A dwell (``place_dwell``) is a last segment between two points of equal positions with
-        zero velocities and accelerations (to ``REST_TOLERANCE``, the rounding left by the
-        timing): JTC's quintic there is constant.
-        """
-        times = self.trajectory.time_from_start
-        if times.size < 2:
-            return 0.0
-        trajectory = self.trajectory
-        at_rest = all(np.all(np.abs(values) <= REST_TOLERANCE) for values in (
-            trajectory.positions[-1] - trajectory.positions[-2], trajectory.velocities[-2:],
-            trajectory.accelerations[-2:]))
-        return float(times[-1] - times[-2]) if at_rest else 0.0
+
+def final_rest(trajectory):
+    """
+    Return how long a JointTrajectoryData rests at its last point before its end [s].
+
+    A dwell (``place_dwell``) is a last segment between two points of equal positions with
+    zero velocities and accelerations (to ``REST_TOLERANCE``, the rounding left by the
+    timing): JTC's quintic there is constant. A belt pick onto a moving place ends with its
+    exit, not at rest before its end: 0.
+    """
+    times = trajectory.time_from_start
+    if times.size < 2:
+        return 0.0
+    at_rest = all(np.all(np.abs(values) <= REST_TOLERANCE) for values in (
+        trajectory.positions[-1] - trajectory.positions[-2], trajectory.velocities[-2:],
+        trajectory.accelerations[-2:]))
+    return float(times[-1] - times[-2]) if at_rest else 0.0
 
 
 @dataclass(frozen=True)
@@ -416,7 +421,8 @@ class Sequencer:
 
         ``received`` = ``released`` + ``rejected`` + ``dropped`` + ``queued`` (waiting, being
         planned or held) + ``releasing`` (taken for release, being checked and published).
-        ``planned`` counts successful plans (a pair re-planned at release counts once).
+        ``planned`` counts successful plans (a pair re-planned at release or put back by
+        :meth:`requeue_held` counts once).
         ``rejected_<kind>`` and ``dropped_<kind>`` split ``rejected`` and ``dropped`` by the
         kind of their status (``queue_full``, ``unpaired``, ``cleared``, ...).
         """
@@ -709,6 +715,33 @@ class Sequencer:
             self._condition.notify_all()
 
     # --- clearing and stopping --------------------------------------------------------------
+
+    def requeue_held(self, stale):
+        """
+        Put held motions back to be planned again, from the first for which ``stale`` is true.
+
+        The held motions run back to back, each planned from the end of the one before, so
+        those after a stale one go back too. Their pairs wait again at the front, in their
+        order; ``planned`` counts each pair's plans once (see :meth:`counts`). Called by the
+        planning worker between two plans (none is in progress then): a belt pick planned for
+        a belt velocity that has since changed.
+
+        Returns
+        -------
+        list of int
+            The numbers of the pairs put back, in their order.
+
+        """
+        with self._condition:
+            first = next((index for index, motion in enumerate(self._held) if stale(motion)),
+                         None)
+            if first is None:
+                return []
+            requests = [self._held.pop().request for _ in range(len(self._held) - first)]
+            self._waiting.extendleft(requests)  # reversed twice: in their order
+            self._counts['planned'] -= len(requests)
+            self._condition.notify_all()
+            return [request.number for request in reversed(requests)]
 
     def clear(self):
         """

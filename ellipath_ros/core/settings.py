@@ -264,8 +264,9 @@ SETTINGS = (
          'conveyor_velocity for this long after its arrival; 0 never uses it', 'conveyor',
          low=0.0, high=60.0),
     _row('conveyor_replan_tolerance', 'double', 0.001, 'm/s',
-         'At release, a belt pick planned for a belt velocity further than this from the '
-         'current one is re-planned (as is one whose planned start has passed)', 'conveyor',
+         'A held belt pick planned for a belt velocity further than this from the current '
+         'one is planned again, with those held after it, while the robot runs; at release '
+         'at the latest (as is one whose planned start has passed)', 'conveyor',
          low=0.0, high=1.0),
     # --- robot geometry and joint position limits -------------------------------------------
     _core('base_radius', 'double', 0.2, 'm', 'R: base centre to actuator axis', 'geometry',
