@@ -208,6 +208,15 @@ def test_a_belt_plan_times_few_legs_and_searches_points_once_per_piece(monkeypat
         # transfer, once each.
         assert timings[0] <= 6
         assert searches[0] == 3
+    # Onto a place belt at right angles: the transfer is aimed once or twice more, and the
+    # exit off the tray is one more timing (its lift) and one more piece.
+    timings[0] = searches[0] = 0
+    pick = np.array([-0.2, 0.0, -0.85])
+    plan_belt_cycle(START, pick, PLACE, CONFIG, Conveyor(velocity=belt(0.3, 0.0),
+                                                         place_velocity=belt(0.3, 90.0)),
+                    pick_dwell=DWELL, start_time=0.02)
+    assert timings[0] <= 9
+    assert searches[0] == 4
 
 
 def search_smallest(value, start, speed):

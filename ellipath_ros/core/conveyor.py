@@ -160,7 +160,8 @@ class Conveyor:
     velocity : numpy.ndarray
         Pick belt velocity in the base frame [m/s], shape (3,); zero = static picks.
     place_velocity : numpy.ndarray
-        Place belt (tray) velocity in the base frame [m/s], shape (3,); zero = static places.
+        Place belt (tray) velocity in the base frame [m/s], shape (3,), at any angle to
+        ``velocity``; zero = static places.
     window_upstream, window_downstream : float
         Tracking window: positions along the pick belt's direction (the TCP position
         projected on the unit belt velocity, base frame) between which a pick may
