@@ -23,7 +23,8 @@ CPython's small-object allocator, where every Python object and NumPy array head
 a leak of objects grows it) and, with ``--trim``, VmRSS again after glibc's
 ``malloc_trim(0)`` has returned every free page to the system: memory that is freed but
 kept by the allocator then no longer counts. Run it with ``MALLOC_ARENA_MAX`` or
-``MALLOC_MMAP_THRESHOLD_`` set to compare allocator policies.
+``MALLOC_MMAP_THRESHOLD_`` set to compare allocator policies; the summary gives the CPU time
+per plan after the first sample, and its system part.
 
 ``node``: ``ellipath_node`` as a subprocess under continuous valid pairs from this process
 for ``--minutes`` (the flood of ``scripts/flood.py`` at a low rate, so that the queue stays
@@ -103,7 +104,9 @@ def soak_plans(plans, every, seed, trim=False):
             sample = {'plans': index + 1, 'planned': planned, 'rejected': rejected,
                       'rss_kib': flood.resident_kib(os.getpid()),
                       'python_blocks': sys.getallocatedblocks(),
-                      'elapsed_s': round(time.monotonic() - started)}
+                      'elapsed_s': round(time.monotonic() - started),
+                      'cpu_s': round(time.process_time(), 3),
+                      'system_s': round(os.times().system, 3)}
             if malloc_trim is not None:
                 malloc_trim(0)
                 sample['rss_trimmed_kib'] = flood.resident_kib(os.getpid())
@@ -120,6 +123,13 @@ def summary(samples, count_key):
     result = {'samples': len(samples), count_key: samples[-1][count_key],
               'rss_first_kib': rss[0], 'rss_last_kib': rss[-1], 'rss_max_kib': max(rss),
               'growth_kib': rss[-1] - rss[0], 'growth_max_kib': max(rss) - rss[0]}
+    if len(samples) >= 2 and 'cpu_s' in samples[0]:
+        # CPU per plan after the first sample (the first plans fill caches), the system's
+        # part apart: mapping and unmapping memory is system time (see MALLOC_MMAP_THRESHOLD).
+        counted = samples[-1][count_key] - samples[0][count_key]
+        for key in ('cpu_s', 'system_s'):
+            result[f'{key[:-2]}_ms_per_plan'] = round(
+                1e3 * (samples[-1][key] - samples[0][key]) / counted, 2)
     half = samples[len(samples) // 2:]
     if len(half) >= 2:
         # Least-squares slope of VmRSS over the second half, per 1,000 of count_key.
