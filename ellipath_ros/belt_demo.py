@@ -53,6 +53,7 @@ from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.planner import executed_bounds
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.sequencing import final_rest
 import numpy as np
 
 BELT_Z = -0.85
@@ -92,9 +93,13 @@ def add_belt_arguments(parser):
                         help='with --belt-core: which waiting object is taken when the robot '
                         'is free: the first in latch order that can still be caught, or the '
                         'one whose cycle ends soonest unless that loses the first (default: '
-                        '%(default)s, as the node, which takes its pairs in arrival order)')
+                        '%(default)s, as the node, which takes its belt pairs in latch order)')
     parser.add_argument('--belt-speed', type=float, default=0.3,
                         help='belt speed along +x [m/s] (default: %(default)s)')
+    parser.add_argument('--place-belt', type=float, nargs=3, default=(0.0, 0.0, 0.0),
+                        metavar=('VX', 'VY', 'VZ'),
+                        help='with --belt: place belt (tray) velocity [m/s], at any angle to '
+                        'the pick belt, e.g. 0 0.3 0 (default: still places)')
     parser.add_argument('--objects', type=int, default=20,
                         help='objects latched, belt scenario (default: %(default)s)')
     parser.add_argument('--rate', type=float, default=2.5,
@@ -128,20 +133,23 @@ class BeltPick:
     pick_after_start: float  # planned pick instant, from the start
     window_position: float  # [m] along the belt at the pick (planned)
     wait: float  # [s] rest at the start before the approach (planned)
+    place: np.ndarray  # where the TCP places [m], (3,)
+    place_after_start: float  # planned place instant, from the start
 
 
-def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None, order='latch'):
+def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None, order='latch',
+                      place_velocity=(0.0, 0.0, 0.0)):
     """
     Play the belt cell with the core alone; return a JSON-ready dict of what was executed.
 
     Whenever the robot is free, the objects latched by then wait, and ``order`` says which is
     taken (:func:`~ellipath_ros.core.conveyor.next_belt_pick`); the others wait for the next
     cycle or, missed, are reported at once. Every figure is of the executed motion unless its
-    key says ``planned``.
+    key says ``planned``. ``place_velocity``: the place belt's [m/s], (3,).
     """
     config = config or PlannerConfig()
-    conveyor = Conveyor(velocity=np.array([speed, 0.0, 0.0]), window_upstream=WINDOW[0],
-                        window_downstream=WINDOW[1])
+    conveyor = Conveyor(velocity=np.array([speed, 0.0, 0.0]), place_velocity=place_velocity,
+                        window_upstream=WINDOW[0], window_downstream=WINDOW[1])
     latches, objects = object_stream(count, rate, seed)
     position, free_at = np.array(HOME), 0.0
     picks, misses = [], []
@@ -166,14 +174,19 @@ def run_belt_scenario(count=20, speed=0.3, rate=2.5, seed=12, config=None, order
         arrival = max(start - HANDOVER, picks[-1].arrival if picks else 0.0)
         picks.append(BeltPick(number, latches[number], objects[number], start, arrival,
                               trajectory, plan.intercept.pick_time - start,
-                              plan.intercept.window_position, plan.intercept.wait))
-        position, free_at = plan.end_position, start + trajectory.duration
-    result = evaluate_belt_run(picks, misses, count, speed, config, HOME)
+                              plan.intercept.window_position, plan.intercept.wait, place,
+                              plan.metrics['belt.place_after_start']))
+        # The next one is handed over HANDOVER before its stamp, which must be while this one
+        # rests at its end (a moving place ends with its exit, not at rest: then later).
+        position = plan.end_position
+        free_at = start + trajectory.duration + max(0.0, HANDOVER - final_rest(trajectory))
+    result = evaluate_belt_run(picks, misses, count, speed, config, HOME, place_velocity)
     result.update(rate_per_s=rate, engine='core', order=order)
     return result
 
 
-def evaluate_belt_run(picks, misses, count, speed, config, home):
+def evaluate_belt_run(picks, misses, count, speed, config, home,
+                      place_velocity=(0.0, 0.0, 0.0)):
     """
     Replay belt picks on the JTC emulation; return a JSON-ready dict of what was executed.
 
@@ -191,14 +204,18 @@ def evaluate_belt_run(picks, misses, count, speed, config, home):
         The planner's settings (geometry, limits, joint names).
     home : array_like
         Where the robot rests before the first trajectory [m], (3,).
+    place_velocity : array_like
+        The place belt's velocity [m/s], (3,): the TCP rides on it in the place dwell.
 
     """
     velocity = np.array([speed, 0.0, 0.0])
+    place_velocity = np.asarray(place_velocity, dtype=float)
     first = picks[0].arrival - 1.0 if picks else 0.0
     emulator = JazzyJtcEmulator(config.joint_names, start_time=first,
                                 initial_positions=inverse_kinematics(np.asarray(home, float),
                                                                      config.geometry))
-    worst = {'on_object': 0.0, 'relative_speed': 0.0}
+    worst = dict.fromkeys(('on_object', 'relative_speed', 'on_place', 'place_relative_speed'),
+                          0.0)
     peaks = dict.fromkeys(('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
                            'joint_peak_accel'), 0.0)
     rows = []
@@ -218,6 +235,9 @@ def evaluate_belt_run(picks, misses, count, speed, config, home):
                                  float(np.linalg.norm(tcp - object_path, axis=1).max()))
         worst['relative_speed'] = max(worst['relative_speed'],
                                       float(np.linalg.norm(relative, axis=1).max()))
+        on_place, place_speed = _placed(pick, place_velocity, config)
+        worst['on_place'] = max(worst['on_place'], on_place)
+        worst['place_relative_speed'] = max(worst['place_relative_speed'], place_speed)
         for key, value in executed_peaks(trajectory, config.geometry).items():
             peaks[key] = max(peaks[key], value)
         rows.append({'object': pick.number,
@@ -251,6 +271,9 @@ def evaluate_belt_run(picks, misses, count, speed, config, home):
         'executed.picks_per_min': 60.0 * len(picks) / span if span > 0.0 else 0.0,
         'executed.max_tcp_to_object_at_pick': worst['on_object'],
         'executed.max_relative_speed_in_dwell': worst['relative_speed'],
+        'place_belt_velocity': place_velocity.tolist(),
+        'executed.max_tcp_to_place': worst['on_place'],
+        'executed.max_relative_speed_in_place_dwell': worst['place_relative_speed'],
         **{f'executed.{key}': value for key, value in peaks.items()},
         'executed.emulated_deviation_from_plans': deviation,
         'executed.emulated_1khz_peak_speed': timeline.peak_speed if timeline else 0.0,
@@ -265,6 +288,22 @@ def evaluate_belt_run(picks, misses, count, speed, config, home):
     }
 
 
+def _placed(pick, place_velocity, config):
+    """
+    Return the executed TCP's distance to the place and its speed relative to the place belt.
+
+    The distance at the place instant, the largest relative speed during the place dwell.
+    """
+    dwell = pick.place_after_start + np.linspace(0.0, DWELL, DWELL_SAMPLES)
+    trajectory = pick.trajectory
+    tcp = forward_kinematics(quintic_interpolate(trajectory, dwell[:1])[0], config.geometry)
+    ahead, behind = (forward_kinematics(quintic_interpolate(trajectory, dwell[1:-1] + step)[0],
+                                        config.geometry) for step in (SPEED_STEP, -SPEED_STEP))
+    relative = (ahead - behind) / (2.0 * SPEED_STEP) - place_velocity
+    return (float(np.linalg.norm(tcp[0] - pick.place)),
+            float(np.linalg.norm(relative, axis=1).max()))
+
+
 def failures(result):
     """Return the failed checks of a belt run, as lines."""
     limits = result['limits']
@@ -273,6 +312,11 @@ def failures(result):
          f'TCP on the object within {ON_OBJECT * 1e3:g} mm at every pick'),
         (result['executed.max_relative_speed_in_dwell'] <= RELATIVE_SPEED,
          f'relative speed within {RELATIVE_SPEED * 1e3:g} mm/s during every dwell'),
+        (result['executed.max_tcp_to_place'] <= ON_OBJECT,
+         f'TCP on the place within {ON_OBJECT * 1e3:g} mm at every place'),
+        (result['executed.max_relative_speed_in_place_dwell'] <= RELATIVE_SPEED,
+         f'speed relative to the place belt within {RELATIVE_SPEED * 1e3:g} mm/s during every '
+         'place dwell'),
         (result['executed.peak_speed'] <= limits['max_speed'], 'TCP speed limit'),
         (result['executed.peak_accel'] <= limits['max_accel'], 'TCP acceleration limit'),
         (result['executed.peak_jerk'] <= limits['executed_jerk_bound'],
@@ -296,7 +340,7 @@ def failures(result):
 def format_belt_report(result):
     """Return the human-readable report of a belt run."""
     how = ('through ellipath_node over DDS (its belt release, stamped ahead; pairs in '
-           'arrival order)' if result['engine'] == 'node' else
+           'latch order)' if result['engine'] == 'node' else
            f"planned with the core alone (no ROS), order {result['order']}")
     lines = [
         f"ellipath demo --belt: {result['objects']} objects at {result['rate_per_s']:g}/s on a "
@@ -311,6 +355,10 @@ def format_belt_report(result):
         f"dwell: max {result['executed.max_relative_speed_in_dwell'] * 1e3:.3g} mm/s; emulated "
         'controller (1 kHz) off the trajectories it ran: max '
         f"{result['executed.emulated_deviation_from_plans'] * 1e3:.3g} mm",
+        f"place belt {result['place_belt_velocity']} m/s: executed TCP to place at the place: "
+        f"max {result['executed.max_tcp_to_place'] * 1e3:.3g} mm; speed relative to the place "
+        'belt in the place dwell: max '
+        f"{result['executed.max_relative_speed_in_place_dwell'] * 1e3:.3g} mm/s",
         f"executed peaks: {result['executed.peak_speed']:.4g} m/s, "
         f"{result['executed.peak_accel']:.4g} m/s^2, {result['executed.peak_jerk']:.5g} m/s^3; "
         f"joints {result['executed.joint_peak_velocity']:.4g} rad/s, "
@@ -372,9 +420,11 @@ def write_belt_figure(plan, pick, velocity, latch_time, out_dir):
 
 def belt_options_error(args):
     """Return what is wrong with the belt scenario's options, or None."""
+    place_speed = float(np.linalg.norm(args.place_belt))
     if args.objects < 1 or not (0.0 < args.belt_speed <= 1.0) or not math.isfinite(args.rate) \
-            or args.rate <= 0.0:
-        return 'expected --objects >= 1, --belt-speed in (0, 1] m/s and --rate > 0'
+            or args.rate <= 0.0 or not place_speed <= 1.0:
+        return ('expected --objects >= 1, --belt-speed in (0, 1] m/s, --rate > 0 and a '
+                '--place-belt speed of at most 1 m/s')
     return None
 
 
@@ -385,14 +435,15 @@ def run_belt_demo(args):
         sys.stderr.write(f'ellipath demo --belt: {error}\n')
         return 2
     result = run_belt_scenario(args.objects, args.belt_speed, args.rate, args.seed,
-                               order=args.order)
+                               order=args.order, place_velocity=args.place_belt)
     sys.stdout.write(format_belt_report(result))
     return 1 if failures(result) else 0
 
 
-def belt_parameters(speed):
+def belt_parameters(speed, place_velocity=(0.0, 0.0, 0.0)):
     """Return the node parameters of the belt cell, as (name, value) pairs."""
     return [('conveyor_velocity', [float(speed), 0.0, 0.0]),
+            ('place_conveyor_velocity', [float(value) for value in place_velocity]),
             ('tracking_window_upstream', WINDOW[0]), ('tracking_window_downstream', WINDOW[1]),
             ('pick_dwell', DWELL), ('place_dwell', DWELL), ('home_position', list(HOME))]
 
@@ -435,12 +486,14 @@ def run_node_belt(args, cell, timeout):
             number, (stamps[number] - origin) * 1e-9, objects[number],
             (start_ns - origin) * 1e-9, arrival - origin * 1e-9,
             joint_trajectory_data(message), float(values['belt.pick_after_start']),
-            float(values['belt.window_position']), float(values['belt.wait'])))
+            float(values['belt.window_position']), float(values['belt.wait']),
+            np.array(PLACES[number % len(PLACES)]), float(values['belt.place_after_start'])))
     for pair, (message, values) in sorted(answers.items()):
         if message != 'released':
             misses.append({'object': pair - 1, 'kind': values.get('kind', 'unknown'),
                            'reason': message})
-    result = evaluate_belt_run(picks, misses, args.objects, args.belt_speed, cell.config, HOME)
+    result = evaluate_belt_run(picks, misses, args.objects, args.belt_speed, cell.config, HOME,
+                               args.place_belt)
     plan_times = [float(values['plan_time']) for level, message, values in cell.statuses()
                   if message == 'planned' and 'plan_time' in values]
     result.update(rate_per_s=args.rate, engine='node',

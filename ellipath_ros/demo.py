@@ -281,7 +281,7 @@ def _run_in_context(args, context, params_file, domain_id):
     overrides = [Parameter('profile', value=args.profile)] if args.profile else []
     if args.belt:
         overrides += [Parameter(name, value=value)
-                      for name, value in belt_parameters(args.belt_speed)]
+                      for name, value in belt_parameters(args.belt_speed, args.place_belt)]
     try:
         node = EllipathNode(context=context, namespace=f'{NAMESPACE}_{os.getpid()}',
                             cli_args=cli_args, parameter_overrides=overrides)

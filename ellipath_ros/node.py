@@ -30,8 +30,8 @@ Conveyor tracking (``conveyor_velocity`` or a fresh ``conveyor_twist``, geometry
 TwistStamped; :mod:`ellipath_ros.core.conveyor`): a pick's ``header.stamp`` is when the object
 was there; the pair is planned for a known start, published stamped at it (the controller
 holds the robot until then) and re-planned at release if that start has passed or the belt
-changed; an object the robot cannot reach inside the tracking window is rejected as
-``missed``.
+changed (held pairs are planned again as soon as the planning thread sees the change); an
+object the robot cannot reach inside the tracking window is rejected as ``missed``.
 
 Only the position of a pose is used: the Delta robot has three translational degrees of
 freedom and its effector stays level, so the orientation is ignored. Poses must be in the
@@ -54,7 +54,8 @@ replaces the running trajectory at its next control cycle whatever the new ``hea
 measured state to the new first point (src/trajectory.cpp ``sample()``, lines 148-168), so a
 trajectory published while another runs cuts it short. The node therefore works in three
 stages: the subscription callbacks only validate, pair and queue (a full queue rejects the
-newest pair with a WARN status); a planning thread plans the queued pairs in arrival order,
+newest pair with a WARN status); a planning thread plans the queued pairs in arrival order
+(on a moving belt, in latch order: the earliest ``header.stamp`` first),
 each from the end of the motion planned before it (or, when nothing runs, from the robot:
 fresh ``joint_states``, else the end of the last trajectory, else ``home_position``) and
 holds them; a release thread publishes each held trajectory once the one before it has
@@ -69,6 +70,7 @@ configuration stays in force.
 """
 
 import collections
+import ctypes
 import dataclasses
 import math
 import os
@@ -179,6 +181,22 @@ WORKER_POLL = 0.1
 # end, but needs the GIL, which a planning thread in NumPy code keeps for up to the switch
 # interval (5 ms by default): 0.5 ms bounds that delay of the release.
 SWITCH_INTERVAL = 0.0005
+# glibc's malloc policy for the node's long runs, set by main() before the node's threads
+# exist (docs/reliability.md, "The node over time"). By default glibc gives every thread that
+# allocates an arena of its own (up to 8 per core; the node has about 20 threads), each arena
+# keeps what was freed in it, and the mmap threshold rises to the largest block freed so far
+# (mallopt(3)), so that NumPy's large temporaries come from the arenas instead of being mapped
+# and unmapped. Under continuous pairs the node's resident memory kept rising (60 KiB a minute
+# after 8 minutes) while the memory in use (mallinfo2) did not: it was memory freed and kept.
+# Two arenas and a fixed threshold (which also fixes glibc's trim threshold) keep it flat; a
+# threshold of 64 KiB cost 14 ms of system time per plan (mmap and page faults), 256 KiB none.
+MALLOC_ARENA_MAX = 2
+MALLOC_MMAP_THRESHOLD = 256 * 1024  # bytes
+# mallopt() parameters (glibc's malloc.h).
+_M_MMAP_THRESHOLD = -3
+_M_ARENA_MAX = -8
+# Environment variables with which the caller sets glibc's malloc policy: theirs prevails.
+MALLOC_ENVIRONMENT = ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'GLIBC_TUNABLES')
 # A belt pick starts at a time planned in advance (the intercept depends on it): at least this
 # many times the median duration of the last BELT_PLAN_TIMES belt plans (missed ones
 # included) after the plan starts (while idle), never less than BELT_LEAD_MIN, and
@@ -261,6 +279,8 @@ class EllipathNode(Node):
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self._conveyor_twist = None  # (velocity (3,), time.monotonic() at arrival)
+        # The belt velocity the held motions were last checked against (planning thread).
+        self._checked_belt_velocity = None
         # Durations of the last belt plans [s], missed ones included (see BELT_PLAN_TIMES).
         self._belt_plan_times = collections.deque([BELT_PLAN_TIME_GUESS],
                                                   maxlen=BELT_PLAN_TIMES)
@@ -494,11 +514,44 @@ class EllipathNode(Node):
     # --- planning thread ------------------------------------------------------------------
 
     def _planning_loop(self):
-        """Plan the queued pairs in arrival order until the node stops."""
+        """Plan the queued pairs in arrival (belt picks: latch) order until the node stops."""
         while not self._sequencer.stopped:
-            taken = self._sequencer.next_to_plan(WORKER_POLL)
+            settings = self._settings
+            conveyor = self._conveyor(settings)
+            self._requeue_stale_belt_picks(conveyor.velocity, settings)
+            # On a moving belt, the pair latched first: the core's 'latch' order (see
+            # Sequencer.take_for_planning). Planning every waiting pair to take the one whose
+            # cycle ends first ('soonest') would cost a belt plan per waiting pair per pick.
+            taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving)
             if taken is not None:
                 self._plan_queued(*taken)
+
+    def _requeue_stale_belt_picks(self, velocity, settings):
+        """
+        Plan again the held pairs planned for a belt velocity the belt no longer has.
+
+        More than conveyor_replan_tolerance from ``velocity`` (a conveyor_twist or a parameter
+        changed it; a motion planned while the belt stood still counts as planned for zero):
+        put back with those held after it (Sequencer.requeue_held) and planned again while
+        the robot runs, rather than at release while it waits.
+        """
+        if self._checked_belt_velocity is not None and np.array_equal(
+                velocity, self._checked_belt_velocity):
+            return  # every held motion has been checked against this velocity or planned for it
+        self._checked_belt_velocity = velocity
+
+        def stale(motion):
+            planned = motion.details.get('belt_velocity', np.zeros(3))
+            return float(np.linalg.norm(velocity - planned)) > settings.conveyor_replan_tolerance
+
+        numbers = self._sequencer.requeue_held(stale)
+        if numbers:
+            text = (f'belt velocity now {np.round(velocity, 6).tolist()} m/s: held pairs '
+                    f'{numbers} planned again')
+            self.get_logger().warn(text)
+            self._publish_status(DiagnosticStatus.WARN, text, {
+                'kind': 'requeued', 'requeued_pairs': ' '.join(map(str, numbers)),
+                **self._queue_values()})
 
     def _plan_queued(self, request, start):
         """Plan one queued pair from ``start`` (None: where the robot is) and hold it."""
@@ -856,6 +909,9 @@ def _delayed_belt_start(motion, delay, frame_id):
     shortened = dataclasses.replace(trajectory, time_from_start=times)
     message = joint_trajectory_message(shortened, frame_id, Time())
     metrics = {**motion.details['metrics'], 'belt.wait': wait - delay}
+    # The same absolute instants, from the later start.
+    for key in ('belt.pick_after_start', 'belt.place_after_start'):
+        metrics[key] -= delay
     return dataclasses.replace(motion, trajectory=joint_trajectory_data(message), details={
         **motion.details, 'message': message, 'metrics': metrics,
         'belt_start': motion.details['belt_start'] + delay})
@@ -864,6 +920,27 @@ def _delayed_belt_start(motion, delay, frame_id):
 def _stamp_key(stamp):
     """Return a builtin_interfaces/Time as the hashable pairing key (sec, nanosec)."""
     return (stamp.sec, stamp.nanosec)
+
+
+def set_malloc_policy(environment=os.environ):
+    """
+    Limit glibc's malloc arenas and fix its mmap threshold; return True if set.
+
+    Nothing is changed off glibc (no ``mallopt``, or not glibc's) or when the caller chose a
+    policy in ``environment`` (see MALLOC_ENVIRONMENT). Call it before the node's threads
+    exist: an arena, once created, stays (the imports already made about three).
+    """
+    if any(name in environment for name in MALLOC_ENVIRONMENT):
+        return False
+    try:
+        if not os.confstr('CS_GNU_LIBC_VERSION'):
+            return False
+        mallopt = ctypes.CDLL(None).mallopt
+    except (AttributeError, OSError, ValueError):
+        return False  # not glibc: its allocator has no such arenas
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    return bool(mallopt(_M_ARENA_MAX, MALLOC_ARENA_MAX)
+                and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD))
 
 
 def _watch_signals(stop, finished, on_stop):
@@ -915,6 +992,8 @@ def main(args=None):
         Command-line arguments (``--ros-args ...``); ``sys.argv`` if None.
 
     """
+    # Before rclpy starts the DDS threads and the node its own (see MALLOC_ARENA_MAX).
+    set_malloc_policy()
     # The release thread must wake at a trajectory's end even while the planning thread runs
     # NumPy code: see SWITCH_INTERVAL.
     sys.setswitchinterval(SWITCH_INTERVAL)

@@ -118,16 +118,30 @@ def pair_of_place(place):
     return row * ROW + column
 
 
-def resident_kib(pid):
-    """Return the resident set size (VmRSS) of process ``pid`` [KiB], or None if it is gone."""
+# Lines of /proc/<pid>/status with the resident set size and its parts [KiB]: anonymous
+# (malloc, Python, NumPy), file-backed (libraries, which grow as new code runs) and shared
+# memory (Fast DDS's shared-memory transport).
+MEMORY_FIELDS = {'VmRSS': 'rss', 'RssAnon': 'anon', 'RssFile': 'file', 'RssShmem': 'shmem'}
+
+
+def memory_kib(pid):
+    """Return VmRSS and its parts (see MEMORY_FIELDS) of process ``pid`` [KiB], or None."""
+    memory = {}
     try:
         with open(f'/proc/{pid}/status') as status:
             for line in status:
-                if line.startswith('VmRSS:'):
-                    return int(line.split()[1])
+                name = line.split(':', 1)[0]
+                if name in MEMORY_FIELDS:
+                    memory[MEMORY_FIELDS[name]] = int(line.split()[1])
     except OSError:
         return None
-    return None
+    return memory if 'rss' in memory else None
+
+
+def resident_kib(pid):
+    """Return the resident set size (VmRSS) of process ``pid`` [KiB], or None if it is gone."""
+    memory = memory_kib(pid)
+    return None if memory is None else memory['rss']
 
 
 def percentile(values, share):
@@ -325,6 +339,7 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
             time.sleep(0.05)
         time.sleep(0.5)  # discovery is matched both ways by now, give DDS a moment more
         rss = [(0.0, resident_kib(process.pid))]
+        memory = []  # one sample per rss_every: see _memory_sample
         offered = int(round(rate * seconds))
         sent, sent_at, invalid = {}, {}, {}
         started = time.monotonic()
@@ -344,6 +359,8 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
             sent_at[pair_id] = time.monotonic()
             if now >= next_sample:
                 rss.append((now - started, resident_kib(process.pid)))
+                memory.append(_memory_sample(process.pid, now - started, pair_id + 1,
+                                             recorder))
                 next_sample += rss_every
                 if out is not None:
                     print(json.dumps({'t': round(now - started, 1), 'offered': pair_id + 1,
@@ -391,12 +408,24 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
         recorder.close()
     report = _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, answer,
                      log_path)
+    report['memory_samples'] = memory
     report.update(stream=stream, rate_offered=rate, seconds=seconds, pairs_offered=offered,
                   send_time_s=round(send_time, 2), drained=drained,
                   drain_time_s=round(drain_time, 1),
                   rate_achieved=round((len(sent) - 1) / send_time, 1))
     report['ok'] = report['ok'] and drained
     return report
+
+
+def _memory_sample(pid, elapsed, offered, recorder):
+    """
+    Return the node's memory (see memory_kib) with what it had sent and this process offered.
+
+    ``statuses`` and ``trajectories``: how many the node had published and this process
+    received by then, which fill the node's bounded DDS histories (scripts/soak.py).
+    """
+    return {'t': round(elapsed, 1), 'offered': offered, 'statuses': len(recorder.statuses),
+            'trajectories': len(recorder.trajectories), **(memory_kib(pid) or {})}
 
 
 def _refused(sent):

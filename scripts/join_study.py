@@ -30,17 +30,22 @@ path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench
 4. ``tolerance``: the production design at several ``join_tolerance``.
 5. ``pairs``: on seeded random pairs (default settings), each shape's planned duration over
    that of the plain quintic with spans from the horizontal bound (the design before).
+6. ``entry``: the accelerations tried at G2 ends (``_END_ACCEL_SHARES`` of
+   :mod:`ellipath_ros.core.optimal_profile`, chosen by probes): ratios per cycle, and on the
+   seeded random pairs the planned duration over that with rest acceleration at the ends and
+   the CPU time of the plans (``time.process_time``).
 
 The shapes are swapped in by replacing the geometry module's ``_blend_shape`` and
 ``_BLEND_PEAK`` for the duration of one measurement (a study, not an API).
 
-    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs]
+    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs entry]
 """
 
 import contextlib
 from dataclasses import replace
 import math
 import sys
+import time
 
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
 from ellipath_ros.core import arc_scan, geometry, optimal_profile
@@ -66,6 +71,9 @@ TIMING_VARIANTS = ({}, {'_NORMAL_JERK_SHARE': 0.98}, {'_CEILING_SHARE': 0.98},
                    {'_NORMAL_JERK_SHARE': 0.98, '_CEILING_SHARE': 0.98, '_VALLEY_SHARE': 0.98,
                     '_END_RETRY_FACTOR': 0.97, '_END_TRIES': 100})
 TOLERANCES = (2.5e-4, 5e-4, 1e-3, 2e-3)
+# Accelerations tried at G2 ends, as shares of max_accel (the first is rest acceleration).
+ENTRY_VARIANTS = ((0.0,), (0.0, -0.1), (0.0, -0.15), (0.0, -0.2), (0.0, -0.25), (0.0, -0.3),
+                  (0.0, -0.1, -0.2), (0.0, -0.1, -0.2, -0.3), (-0.2,))
 
 
 def family_shape(p1, p2):
@@ -232,8 +240,30 @@ def pairs():
               f'{np.mean(ratios < 0.9995):.0%}, slower on {np.mean(ratios > 1.0005):.0%}')
 
 
+def entries():
+    """Print the cycles' ratios and the pairs' durations per set of G2 end accelerations."""
+    print(f'## entry: accelerations tried at G2 ends (shares of max_accel), ratio per cycle; '
+          f'{PAIR_COUNT} seeded random pairs: planned duration over that at rest acceleration, '
+          'CPU time of their plans')
+    limits = CartesianLimits()
+    bent = [with_bend(paper, bend_of(paper)) for paper in random_papers()]
+    at_rest = None
+    for shares in ENTRY_VARIANTS:
+        with patched(optimal_profile, _END_ACCEL_SHARES=shares):
+            row = [f'{ratio(case, g2_path(case)):.4f}' for case in CYCLES]
+            start = time.process_time()
+            durations = np.array([time_motion(path, limits).duration for path in bent])
+            cpu = time.process_time() - start
+        at_rest = durations if at_rest is None else at_rest
+        ratios = durations / at_rest
+        print(f"  {', '.join(f'{share:+.2f}' for share in shares):28s} {' | '.join(row)};  "
+              f'pairs mean {ratios.mean():.4f} max {ratios.max():.4f}, faster on '
+              f'{np.mean(ratios < 0.999):.0%}, slower on {np.mean(ratios > 1.001):.0%}; '
+              f'CPU {cpu:.2f} s')
+
+
 STUDIES = {'corners': corners, 'shapes': shapes, 'timing': timing_variants,
-           'tolerance': tolerances, 'pairs': pairs}
+           'tolerance': tolerances, 'pairs': pairs, 'entry': entries}
 
 
 def main(argv):

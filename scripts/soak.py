@@ -23,14 +23,20 @@ CPython's small-object allocator, where every Python object and NumPy array head
 a leak of objects grows it) and, with ``--trim``, VmRSS again after glibc's
 ``malloc_trim(0)`` has returned every free page to the system: memory that is freed but
 kept by the allocator then no longer counts. Run it with ``MALLOC_ARENA_MAX`` or
-``MALLOC_MMAP_THRESHOLD_`` set to compare allocator policies.
+``MALLOC_MMAP_THRESHOLD_`` set to compare allocator policies; the summary gives the CPU time
+per plan after the first sample, and its system part.
 
 ``node``: ``ellipath_node`` as a subprocess under continuous valid pairs from this process
 for ``--minutes`` (the flood of ``scripts/flood.py`` at a low rate, so that the queue stays
-busy without being flooded); the node's VmRSS is sampled every second.
+busy without being flooded). Every ``--every`` seconds the node's VmRSS and its parts
+(anonymous, file-backed, shared memory) are sampled with how many statuses and trajectories
+it had published. The warm-up ends when every bounded buffer that the pairs fill is full
+(see BUFFERS): the growth reported is the growth after it, and the verdict is ``flat`` when
+the least-squares line through the samples after the warm-up rises by at most
+``--flat-kib`` over that time, for VmRSS and for its anonymous part.
 
     .venv/bin/python scripts/soak.py plans --plans 100000 --trim
-    ROS_DOMAIN_ID=61 .venv/bin/python scripts/soak.py node --minutes 30
+    ROS_DOMAIN_ID=61 .venv/bin/python scripts/soak.py node --minutes 30 --rate 1
 """
 
 import argparse
@@ -43,6 +49,8 @@ import time
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.settings import default_of
+from ellipath_ros.node import DIAGNOSTICS_DEPTH
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -52,6 +60,19 @@ HOME = np.array([0.0, 0.0, -0.8])
 # Distinct pairs cycled through: enough to exercise many geometries, few enough that the
 # inputs themselves take no memory worth counting.
 DISTINCT_PAIRS = 500
+# The node's bounded buffers that continuous pairs fill, as (sample key, bound): the writer
+# histories of /diagnostics (KEEP_LAST DIAGNOSTICS_DEPTH, one sample per status) and of
+# joint_trajectory (KEEP_LAST queue_depth). Fast DDS drops a sample from a VOLATILE writer's
+# history once every reader has acknowledged it, so with a prompt reader these hold far less:
+# counting the warm-up until they could be full is the cautious bound. The intake's
+# KEEP_ALL histories, the cycle queue and the waiting picks hold what the node has not yet
+# read or planned, a few pairs at a rate the node keeps up with.
+BUFFERS = {'diagnostics_history': ('statuses', DIAGNOSTICS_DEPTH),
+           'trajectory_history': ('trajectories', default_of('queue_depth'))}
+# Growth after the warm-up still called flat [KiB] (the samples move by a few hundred KiB
+# as large NumPy arrays are mapped and unmapped, see node.MALLOC_MMAP_THRESHOLD).
+FLAT_KIB = 256
+MEMORY_KEYS = ('rss', 'anon', 'file', 'shmem')
 
 
 def random_point(rng):
@@ -83,7 +104,9 @@ def soak_plans(plans, every, seed, trim=False):
             sample = {'plans': index + 1, 'planned': planned, 'rejected': rejected,
                       'rss_kib': flood.resident_kib(os.getpid()),
                       'python_blocks': sys.getallocatedblocks(),
-                      'elapsed_s': round(time.monotonic() - started)}
+                      'elapsed_s': round(time.monotonic() - started),
+                      'cpu_s': round(time.process_time(), 3),
+                      'system_s': round(os.times().system, 3)}
             if malloc_trim is not None:
                 malloc_trim(0)
                 sample['rss_trimmed_kib'] = flood.resident_kib(os.getpid())
@@ -100,6 +123,13 @@ def summary(samples, count_key):
     result = {'samples': len(samples), count_key: samples[-1][count_key],
               'rss_first_kib': rss[0], 'rss_last_kib': rss[-1], 'rss_max_kib': max(rss),
               'growth_kib': rss[-1] - rss[0], 'growth_max_kib': max(rss) - rss[0]}
+    if len(samples) >= 2 and 'cpu_s' in samples[0]:
+        # CPU per plan after the first sample (the first plans fill caches), the system's
+        # part apart: mapping and unmapping memory is system time (see MALLOC_MMAP_THRESHOLD).
+        counted = samples[-1][count_key] - samples[0][count_key]
+        for key in ('cpu_s', 'system_s'):
+            result[f'{key[:-2]}_ms_per_plan'] = round(
+                1e3 * (samples[-1][key] - samples[0][key]) / counted, 2)
     half = samples[len(samples) // 2:]
     if len(half) >= 2:
         # Least-squares slope of VmRSS over the second half, per 1,000 of count_key.
@@ -112,10 +142,65 @@ def summary(samples, count_key):
     return result
 
 
-def soak_node(minutes, rate, seed):
+def soak_node(minutes, rate, seed, every=10.0, flat_kib=FLAT_KIB):
     """Run the node under ``rate`` pairs/s for ``minutes``; return the flood's report."""
-    return flood.run(rate=rate, seconds=60.0 * minutes, seed=seed, rss_every=10.0,
-                     invalid_share=0.0, out=sys.stderr)
+    report = flood.run(rate=rate, seconds=60.0 * minutes, seed=seed, rss_every=every,
+                       invalid_share=0.0, out=sys.stderr)
+    report['memory'] = memory_verdict(report.pop('memory_samples'), flat_kib)
+    return report
+
+
+def warm_up(samples, buffers=BUFFERS):
+    """
+    Return (when each buffer of ``buffers`` was full, the end of the warm-up) [s].
+
+    A buffer is full at the first sample whose count reached its bound (None: never); the
+    warm-up ends when the last of them is (None if one never is).
+    """
+    full = {}
+    for name, (key, bound) in buffers.items():
+        full[name] = next((sample['t'] for sample in samples if sample[key] >= bound), None)
+    end = None if None in full.values() else max(full.values(), default=0.0)
+    return full, end
+
+
+def memory_verdict(samples, flat_kib=FLAT_KIB, buffers=BUFFERS):
+    """
+    Return the node's memory over the run: per minute, the warm-up, the growth after it.
+
+    Growth after the warm-up, per part of the resident set (see MEMORY_KEYS): the last
+    sample less the first at or after the warm-up, and the rise of the least-squares line
+    through those samples over their time (robust to the samples' noise). ``verdict``:
+    ``flat`` if that rise is at most ``flat_kib`` for VmRSS and for its anonymous part,
+    ``growing`` if not, ``no warm-up`` if a buffer never filled or fewer than 3 samples
+    followed.
+    """
+    full, end = warm_up(samples, buffers)
+    per_minute = {}
+    for sample in samples:
+        per_minute.setdefault(int(sample['t'] // 60.0), sample)
+    result = {'buffers': {name: {'bound': bound, 'full_at_s': full[name]}
+                          for name, (_, bound) in buffers.items()},
+              'warm_up_end_s': end, 'flat_kib': flat_kib,
+              'per_minute_kib': {key: [per_minute[minute].get(key) for minute in
+                                       sorted(per_minute)] for key in MEMORY_KEYS}}
+    after = [] if end is None else [sample for sample in samples if sample['t'] >= end]
+    if len(after) < 3:
+        result['verdict'] = 'no warm-up'
+        return result
+    times = np.array([sample['t'] for sample in after], dtype=float)
+    growth = {}
+    for key in MEMORY_KEYS:
+        values = np.array([sample[key] for sample in after], dtype=float)
+        slope = float(np.polyfit(times, values, 1)[0])
+        growth[key] = {'first_kib': int(values[0]), 'last_kib': int(values[-1]),
+                       'last_less_first_kib': int(values[-1] - values[0]),
+                       'fitted_rise_kib': round(slope * (times[-1] - times[0]), 1),
+                       'per_10_min_kib': round(600.0 * slope, 1)}
+    result.update(after_warm_up_s=round(float(times[-1] - times[0]), 1), growth=growth,
+                  verdict='flat' if all(growth[key]['fitted_rise_kib'] <= flat_kib
+                                        for key in ('rss', 'anon')) else 'growing')
+    return result
 
 
 def main():
@@ -132,11 +217,15 @@ def main():
     node.add_argument('--minutes', type=float, default=30.0)
     node.add_argument('--rate', type=float, default=4.0, help='pairs per second')
     node.add_argument('--seed', type=int, default=17)
+    node.add_argument('--every', type=float, default=10.0, help='seconds between samples')
+    node.add_argument('--flat-kib', type=float, default=FLAT_KIB,
+                      help='growth after the warm-up still called flat [KiB]')
     options = parser.parse_args()
     if options.command == 'plans':
         result = soak_plans(options.plans, options.every, options.seed, options.trim)
     else:
-        result = soak_node(options.minutes, options.rate, options.seed)
+        result = soak_node(options.minutes, options.rate, options.seed, options.every,
+                           options.flat_kib)
     print(json.dumps({'summary': result}), flush=True)
     return 0
 

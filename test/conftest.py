@@ -58,3 +58,10 @@ def ros_context(ros_domain_id):
     rclpy.init(context=context, domain_id=ros_domain_id)
     yield context
     rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(scope='module')
+def monkeypatch_module():
+    """Yield a monkeypatch that lasts for the module."""
+    with pytest.MonkeyPatch.context() as patch:
+        yield patch

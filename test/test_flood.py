@@ -99,13 +99,6 @@ def report(ros_domain_id, tmp_path_factory, monkeypatch_module):
                      log_dir=str(tmp_path_factory.mktemp('flood')))
 
 
-@pytest.fixture(scope='module')
-def monkeypatch_module():
-    """Yield a monkeypatch that lasts for the module."""
-    with pytest.MonkeyPatch.context() as patch:
-        yield patch
-
-
 def test_node_survives_and_answers_a_valid_pair(report):
     assert report['alive_after'], report['node_log']
     assert report['answer_after_flood_s'] is not None

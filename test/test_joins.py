@@ -17,6 +17,7 @@
 import functools
 import math
 
+from ellipath_ros.core import optimal_profile
 from ellipath_ros.core.errors import DegenerateGeometryError, InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy, blend_arc, BlendedArc, EllipticArc, plan_path
 from ellipath_ros.core.limits import CartesianLimits
@@ -189,6 +190,30 @@ def test_g2_motion_has_no_acceleration_step(name):
     steps = np.linalg.norm(np.diff(acceleration, axis=0), axis=1) / (t[1] - t[0])
     assert steps.max() <= 1.01 * CartesianLimits().max_jerk
     assert np.linalg.norm(jerk, axis=1).max() <= CartesianLimits().max_jerk
+
+
+def test_g2_ends_entered_braking_only_where_that_is_faster(monkeypatch):
+    """
+    On the 25-305-25 cycle the lift still brakes at T1 (and the descent starts speeding up).
+
+    With the curvature 0 at a G2 end nothing forces s'' = 0 there; the probed
+    end state must make the whole motion faster than entering at rest
+    acceleration, and s'' must be continuous through T1 and T2 (no step).
+    """
+    def accelerations_at_the_ends(motion):
+        lift, arc, _ = motion.segment_durations
+        ends = np.array([lift, lift + arc])
+        return [motion.path_state(ends + side)[2] for side in (-1e-7, 1e-7)]
+
+    path = path_of('cycle_25_305_25')
+    probed = time_motion(path, CartesianLimits())
+    before, after = accelerations_at_the_ends(probed)
+    assert before[0] < -1.0 and before[1] > 1.0
+    np.testing.assert_allclose(after, before, atol=1e-3)
+    monkeypatch.setattr(optimal_profile, '_END_ACCEL_SHARES', (0.0,))
+    at_rest = time_motion(path, CartesianLimits())
+    np.testing.assert_allclose(accelerations_at_the_ends(at_rest), 0.0, atol=1e-3)
+    assert probed.duration < at_rest.duration
 
 
 @pytest.mark.parametrize('name', ['paper', 'h_negative'])

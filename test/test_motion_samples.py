@@ -67,9 +67,11 @@ def test_slowing_points_down_gives_the_slowed_motions_points_and_peaks():
         np.testing.assert_allclose(getattr(slowed, name), getattr(exact, name), rtol=1e-9,
                                    atol=1e-9)
     # ... and the scaled peaks are those measured on the slowed points themselves (to the
-    # rounding of the jerk's sums).
-    np.testing.assert_allclose(slowed_table, executed_table(slowed, CONFIG.geometry),
-                               rtol=1e-7)
+    # rounding of the jerk's sums, which a segment at nearly constant s'' shows relative to its
+    # near-zero jerk: each column is compared on the scale of its largest value too).
+    measured = executed_table(slowed, CONFIG.geometry)
+    scale = np.abs(measured).max(axis=0)
+    np.testing.assert_allclose(slowed_table / scale, measured / scale, rtol=1e-7, atol=1e-8)
     assert slowed_table[:, 2].max() < table[:, 2].max() / factor ** 3 * (1.0 + 1e-9)
 
 

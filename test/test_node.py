@@ -1066,6 +1066,10 @@ def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
     assert np.allclose(later.trajectory.time_from_start[1:] + delay,
                        planned.trajectory.time_from_start[1:], atol=1e-9)
     assert np.array_equal(later.trajectory.positions, planned.trajectory.positions)
+    # Its pick and place at the same instants: their times from the later start are shorter.
+    for key in ('belt.pick_after_start', 'belt.place_after_start'):
+        assert (later.details['belt_start'] + later.details['metrics'][key] == pytest.approx(
+            planned.details['belt_start'] + planned.details['metrics'][key], abs=1e-9))
     # The belt changed beyond conveyor_replan_tolerance: planned again for the new speed.
     node.set_parameters([Parameter('conveyor_velocity', value=[0.25, 0.0, 0.0])])
     settings = build_settings({name: node.get_parameter(name).value
@@ -1106,8 +1110,14 @@ def test_a_held_belt_pick_is_replanned_when_the_twist_changes_the_belt_speed(mak
     set_belt_speed(0.2)
     assert harness.spin_until(lambda: len(with_message('released')) == 2)
     values = values_of(with_message('released')[1])
-    # Re-planned for the belt the twist gives now, not the one it was planned for.
-    assert values['start_source'].startswith('replanned'), values
+    # Planned again for the belt the twist gives now, while the first ran (not at release,
+    # while the robot would wait), with a status naming it.
+    requeued = [status for status in harness.statuses[first:]
+                if values_of(status).get('kind') == 'requeued']
+    assert len(requeued) == 1 and values_of(requeued[0])['requeued_pairs'] == values['pair']
+    assert requeued[0].level == DiagnosticStatus.WARN
+    assert len(with_message('planned')) == 3
+    assert not values['start_source'].startswith('replanned'), values
     harness.spin_until(lambda: len(harness.received) == 2)
     trajectory = harness.trajectories[-1]
     after_latch = float(values['belt.pick_after_latch'])

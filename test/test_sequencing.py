@@ -182,6 +182,54 @@ def test_pairs_are_planned_in_order_each_from_the_end_of_the_one_before(sequence
     assert sequencer.take_for_planning() is None
 
 
+def test_belt_pairs_are_planned_in_latch_order_each_accounted_for(clock):
+    # Two cameras: pairs arrive out of latch order. Arrival order stays the default.
+    latches = [5.2, 5.0, 5.3, 5.0, None]
+    for by_latch, expected in ((False, [1, 2, 3, 4, 5]), (True, [5, 2, 4, 1, 3])):
+        sequencer = Sequencer(8, clock=clock)
+        for latch in latches:
+            sequencer.submit(PICK, PLACE, 'pick_place', latch)
+        taken = []
+        for index in range(len(latches)):
+            request, _ = sequencer.take_for_planning(by_latch=by_latch)
+            taken.append(request.number)
+            if index == 1:
+                # Missed by its plan: rejected with its kind, never silently dropped.
+                sequencer.plan_failed('missed')
+            else:
+                sequencer.plan_finished(motion_of(request, HOME))
+        assert taken == expected
+        assert sequencer.take_for_planning(by_latch=by_latch) is None
+        counts = sequencer.counts()
+        assert counts['rejected_missed'] == 1 and counts['held'] == 4 and added_up(counts)
+
+
+def test_held_motions_from_the_first_stale_one_are_planned_again_in_their_order(clock):
+    sequencer = Sequencer(6, clock=clock)
+    for _ in range(5):
+        sequencer.submit(PICK, PLACE, 'pick_place', 1.0)
+    for _ in range(4):
+        plan_next(sequencer)
+    assert sequencer.requeue_held(lambda motion: False) == []
+    # Pair 2 is stale: 3 and 4, planned from its end, go back with it, before pair 5.
+    assert sequencer.requeue_held(lambda motion: motion.request.number == 2) == [2, 3, 4]
+    counts = sequencer.counts()
+    assert counts['held'] == 1 and counts['planned'] == 1 and added_up(counts)
+    taken = []
+    while True:
+        taken_now = sequencer.take_for_planning()
+        if taken_now is None:
+            break
+        request, start = taken_now
+        # Each planned again from the end of the motion held before it.
+        assert np.array_equal(start, PLACE)
+        sequencer.plan_finished(motion_of(request, start))
+        taken.append(request.number)
+    assert taken == [2, 3, 4, 5]
+    counts = sequencer.counts()
+    assert counts['planned'] == 5 and counts['held'] == 5 and added_up(counts)
+
+
 def test_the_tail_is_the_running_motion_while_it_runs_and_the_robot_after(sequencer, clock):
     sequencer.submit(PICK, PLACE, 'place_pose')
     plan_next(sequencer, duration=0.5)

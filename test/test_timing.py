@@ -364,21 +364,23 @@ def test_spent_step_budget_falls_back_to_the_sure_construction(monkeypatch):
     assert jerk.max() <= LIMITS.max_jerk * (1.0 + ROUNDING)
 
 
-def _planner_with_arcs(arc_of_speeds):
-    """Return an arc planner whose whole-arc solve is ``arc_of_speeds`` (for its retries)."""
+def _planner_with_arcs(arc_of_states):
+    """Return an arc planner whose whole-arc solve is ``arc_of_states`` (for its retries)."""
     planner = object.__new__(optimal_profile._ArcPlanner)
-    planner._arc = arc_of_speeds
+    planner._arc = arc_of_states
     planner._half_spent = lambda: False
     return planner
 
 
-def _arc_up_to(highest_entry, duration_of_entry):
+def _arc_up_to(highest_entry, duration_of_entry, calls=None):
     """Return a stand-in for the whole-arc solve: entry speeds above ``highest_entry`` fail."""
-    def arc(speeds):
-        if speeds[0] > highest_entry:
+    def arc(states):
+        if calls is not None:
+            calls.append(tuple(states))
+        if states[0][0] > highest_entry:
             raise optimal_profile._EndTooFast(True)
-        return ([(duration_of_entry(speeds[0]), 0.0, speeds[0], 0.0, 0.0)],
-                (speeds[0], 0.0), (speeds[1], 0.0))
+        return ([(duration_of_entry(states[0][0]), 0.0, states[0][0], states[0][1], 0.0)],
+                states[0], states[1])
     return arc
 
 
@@ -386,7 +388,7 @@ def test_end_speed_retries_bisect_towards_the_highest_that_serves():
     # 1.0 comes down by 0.8 to 0.32768 (0.4096 fails); three bisections bracket 0.36 within
     # an eighth of that step.
     planner = _planner_with_arcs(_arc_up_to(0.36, lambda speed: 1.0 - speed))
-    _, entry, exit_state = planner.solve(1.0, 0.5)
+    _, entry, exit_state = planner.solve((1.0, 0.0), (0.5, 0.0))
     step = 0.4096 - 0.32768
     assert 0.36 - step / 8.0 <= entry[0] <= 0.36
     assert exit_state == (0.5, 0.0)
@@ -395,8 +397,50 @@ def test_end_speed_retries_bisect_towards_the_highest_that_serves():
 def test_end_speed_bisection_keeps_the_faster_arc():
     # A faster entry that makes the arc slower (a lower valley further in) is not kept.
     planner = _planner_with_arcs(_arc_up_to(0.36, lambda speed: speed))
-    _, entry, _ = planner.solve(1.0, 0.5)
+    _, entry, _ = planner.solve((1.0, 0.0), (0.5, 0.0))
     assert entry[0] == pytest.approx(1.0 * 0.8 ** 5)
+
+
+def test_entry_acceleration_the_arc_cannot_take_comes_down_to_0_first():
+    """A failing end entered at s'' != 0 retries at s'' = 0 and the same speed, then slower."""
+    calls = []
+    planner = _planner_with_arcs(_arc_up_to(0.3, lambda speed: 1.0, calls))
+    rows, entry, exit_state = planner.solve((0.4, -10.0), (0.5, 8.0))
+    assert [state[0] for state in calls[:3]] == [(0.4, -10.0), (0.4, 0.0),
+                                                 (pytest.approx(0.32), 0.0)]
+    # The exit, which never failed, keeps its acceleration; the retried entry has none.
+    assert 0.25 < entry[0] <= 0.3 and entry[1] == 0.0 and exit_state == (0.5, 8.0)
+    assert rows[0][3] == 0.0
+
+
+def _planner_probing(join, probe_times):
+    """Return an arc planner on a ``join`` path whose probes take ``probe_times[s'']``."""
+    planner = object.__new__(optimal_profile._ArcPlanner)
+    planner.path = plan_path([0, 0, -0.8], [0.3, 0, -0.75], join=join)
+    planner.limits = LIMITS
+    planner._probe = lambda speed, accel, clearance, at_start, cap: probe_times[accel]
+    return planner
+
+
+@pytest.mark.parametrize('times, expected', [
+    ({0.0: 1.0, -10.0: 0.9}, -10.0),
+    ({0.0: 1.0, -10.0: 1.0}, 0.0),
+    ({0.0: 1.0, -10.0: math.inf}, 0.0),
+    ({0.0: math.inf, -10.0: math.inf}, 0.0),
+])
+def test_g2_end_keeps_the_faster_probed_acceleration_rest_on_ties(times, expected):
+    # -10 m/s² is -0.2 max_accel at the default 50 m/s².
+    assert LIMITS.max_accel == 50.0
+    planner = _planner_probing('g2', times)
+    assert planner.end_state(0.4, 0.025, True, None) == (0.4, expected)
+    # At T2 the state is mirrored: braking into T1 is speeding up out of T2.
+    assert planner.end_state(0.4, 0.025, False, None) == (0.4, -expected + 0.0)
+
+
+def test_paper_join_is_entered_at_rest_acceleration_without_probes():
+    planner = _planner_probing('paper', {})
+    assert planner.end_state(0.4, 0.025, True, None) == (0.4, 0.0)
+    assert planner.end_state(0.4, 0.025, False, None) == (0.4, 0.0)
 
 
 def test_valley_speed_retries_bisect_towards_the_highest_that_serves():

@@ -56,6 +56,21 @@ _END_TRIES = 12
 # ... and is then bisected this often between the lowest that failed and the one that serves
 # (to 2.5 % of a retry's step: each bisection solves the whole arc again).
 _END_BISECTIONS = 3
+# A G2 end (curvature 0 at T1/T2) need not be entered at s'' = 0: the lift may still be
+# braking there (and the descent start still speeding up), which the normal jerk
+# kappa_s s'**3 + 3 kappa s' s'' allows (kappa is 0 there) and which spares the lift its last
+# ramp of s'' back to 0, while the arc then starts slower. Entry accelerations tried, as
+# shares of max_accel, the first kept unless another is faster: -0.2 does best of one to
+# five values on seeded random pairs (scripts/join_study.py, study ``entry``).
+_END_ACCEL_SHARES = (0.0, -0.2)
+# Each is tried by a probe: the line's duration plus a scan from the end state over
+# _PROBE_REACH of the horizon (_PROBE_HORIZON of the transition), the rest of the horizon at
+# _PROBE_ACCEL of max_accel; each probe within _PROBE_STEPS of its own. On seeded random pairs
+# the probes pick what whole plans pick (the choice costs ~10 % of a request's CPU time).
+_PROBE_HORIZON = 0.5
+_PROBE_REACH = 0.3
+_PROBE_ACCEL = 0.8
+_PROBE_STEPS = 400
 # Stretches solved per plan before giving up on the scans (the fallback then serves).
 _HILL_BUDGET = 40
 # Scan steps per plan (both directions, every stretch and retry) before giving up on the
@@ -138,7 +153,7 @@ class _ArcPlanner:
                 (share * jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
 
     def end_speed(self, clearance, at_start, speed_cap):
-        """Return the speed aimed at at T1 (``at_start``) or T2, with s'' = 0 there."""
+        """Return the speed aimed at at T1 (``at_start``) or T2 (see :meth:`end_state`)."""
         limits = self.limits
         index = 0 if at_start else -1
         # A G2 join has no curvature at T1/T2, hence no acceleration step to bound.
@@ -153,28 +168,98 @@ class _ArcPlanner:
                 speed_cap, np.linspace(start, start + clearance, _LIMIT_SAMPLES)))))
         return speed
 
-    def solve(self, v_in, v_out):
+    def end_state(self, speed, clearance, at_start, speed_cap):
+        """
+        Return the state (s', s'') aimed at at T1 (``at_start``) or T2, in forward time.
+
+        ``speed`` is :meth:`end_speed`'s. A paper join is entered at s'' = 0
+        (its acceleration step is bounded at rest acceleration). A G2 end
+        tries each of ``_END_ACCEL_SHARES`` (at T2 mirrored: the descent
+        starts still speeding up) by :meth:`_probe` and keeps the fastest, the
+        first unless another is strictly faster.
+        """
+        if self.path.join != 'g2' or speed <= 0.0 or clearance <= 0.0:
+            return speed, 0.0
+        accels = [share * self.limits.max_accel for share in _END_ACCEL_SHARES]
+        best = accels[0]
+        if len(accels) > 1:
+            times = [self._probe(speed, accel, clearance, at_start, speed_cap)
+                     for accel in accels]
+            # The first of the fastest (min keeps the first of equals); all failing: the first.
+            best = accels[min(range(len(accels)), key=times.__getitem__)]
+        return (speed, best) if at_start else (speed, -best)
+
+    def _probe(self, speed, accel, clearance, at_start, speed_cap):
+        """
+        Return the time the line and the arc's start take from an end state, or inf.
+
+        The end state is (``speed``, ``accel``) in the scan's direction (from
+        T2 backwards at T2): the vertical line to (from) it by Ruckig, then a
+        scan from it over ``_PROBE_REACH`` of the horizon, on a scanner of its
+        own (its back-ups must not lower the plan's targets), then the rest of
+        the horizon from the scan's last speed at ``_PROBE_ACCEL`` of
+        max_accel (a faster probe there is ahead). Inf where the line or the
+        scan fails.
+        """
+        path, limits = self.path, self.limits
+        bend = path.bend
+        if at_start:
+            line = _line_rows((0.0, 0.0, 0.0), (clearance, speed, accel), limits, speed_cap,
+                              0.0, clearance)
+            transition = float(bend.s_from_t(math.pi - bend.span_1))
+            table = self.forward.table
+        else:
+            end = path.length - clearance
+            line = _line_rows((end, speed, -accel), (path.length, 0.0, 0.0), limits, speed_cap,
+                              end, path.length)
+            transition = self.length - float(bend.s_from_t(bend.span_2))
+            table = self.backward.table
+        if line is None:
+            return math.inf
+        horizon = min(_PROBE_HORIZON * transition, 0.5 * self.length)
+        reach = _PROBE_REACH * horizon
+        scan = _Scan(0.0, speed, accel, reach)
+        scanner = _Scanner(table, limits, _StepBudget(_PROBE_STEPS))
+        try:
+            while scanner.advance(scan):
+                pass
+        except _NoMotion:
+            return math.inf
+        if scan.status != 'end':
+            return math.inf
+        time = scan.time_at(reach)
+        last = scan.state(time)[1]
+        rest_accel = _PROBE_ACCEL * limits.max_accel
+        rest = (math.sqrt(last * last + 2.0 * rest_accel * (horizon - reach)) - last) / rest_accel
+        return _rows_duration(line) + time + rest
+
+    def solve(self, entry, exit_state):
         """
         Return (arc rows, entry (s', s''), exit (s', s'')) from T1 to T2.
 
-        An end speed the arc cannot take (the curvature grows too fast just
-        inside it) comes down by ``_END_RETRY_FACTOR`` until it can; each end
-        speed that came down is then bisected ``_END_BISECTIONS`` times between
-        the lowest that failed and the one that serves. A faster end does not
-        always make a faster arc (it may need a lower valley further in): a
-        trial is kept only if its arc is not slower (the line to a faster end
-        is not slower either). Bisections stop once half the step or hill
-        budget is spent: they refine, the rest is kept for the retries.
+        ``entry`` and ``exit_state`` are the states aimed at (:meth:`end_state`).
+        An end state the arc cannot take (the curvature grows too fast just
+        inside it) first drops its s'' to 0, then its speed comes down by
+        ``_END_RETRY_FACTOR`` until it can; each end speed that came down is
+        then bisected ``_END_BISECTIONS`` times between the lowest that failed
+        and the one that serves. A faster end does not always make a faster
+        arc (it may need a lower valley further in): a trial is kept only if
+        its arc is not slower (the line to a faster end is not slower either).
+        Bisections stop once half the step or hill budget is spent: they
+        refine, the rest is kept for the retries.
         """
-        speeds, failed = [v_in, v_out], [None, None]
+        states, failed = [tuple(entry), tuple(exit_state)], [None, None]
         for _ in range(_END_TRIES):
             try:
-                solved = self._arc(speeds)
+                solved = self._arc(states)
                 break
             except _EndTooFast as trouble:
                 end = 0 if trouble.at_start else 1
-                failed[end] = speeds[end]
-                speeds[end] *= _END_RETRY_FACTOR
+                speed, accel = states[end]
+                if accel == 0.0:
+                    failed[end] = speed
+                    speed *= _END_RETRY_FACTOR
+                states[end] = (speed, 0.0)
         else:
             raise _NoMotion()
         try:
@@ -182,17 +267,17 @@ class _ArcPlanner:
                 for end in (0, 1):
                     if failed[end] is None or self._half_spent():
                         continue
-                    trial = list(speeds)
-                    trial[end] = 0.5 * (speeds[end] + failed[end])
+                    trial = list(states)
+                    trial[end] = (0.5 * (states[end][0] + failed[end]), 0.0)
                     try:
                         found = self._arc(trial)
                     except _EndTooFast:
-                        failed[end] = trial[end]
+                        failed[end] = trial[end][0]
                         continue
                     if _rows_duration(found[0]) <= _rows_duration(solved[0]):
-                        solved, speeds = found, trial
+                        solved, states = found, trial
                     else:
-                        failed[end] = trial[end]
+                        failed[end] = trial[end][0]
         except _NoMotion:
             # The hill or step budget is spent: keep the motion found.
             pass
@@ -203,9 +288,9 @@ class _ArcPlanner:
         return (self.forward.budget.left < _STEP_BUDGET // 2
                 or self.hills >= _HILL_BUDGET // 2)
 
-    def _arc(self, speeds):
-        """Solve the whole arc from T1 at speeds[0] to T2 at speeds[1] (s'' = 0 at both)."""
-        return self._hill(0.0, (speeds[0], 0.0), self.length, (speeds[1], 0.0), True, True, 0)
+    def _arc(self, states):
+        """Solve the whole arc from T1 in states[0] to T2 in states[1] ((s', s'') each)."""
+        return self._hill(0.0, states[0], self.length, states[1], True, True, 0)
 
     def _hill(self, s_a, state_a, s_b, state_b, free_a, free_b, depth):
         """
@@ -597,24 +682,27 @@ def _optimal_motion(path, limits, speed_cap):
         return _straight_motion(path, limits, speed_cap, 'time_optimal')
     c1, arc_length, c2 = (float(value) for value in path.segment_lengths)
     planner = _ArcPlanner(path, limits, speed_cap)
-    v_in = planner.end_speed(c1, True, speed_cap)
-    v_out = planner.end_speed(c2, False, speed_cap)
+    entry = planner.end_state(planner.end_speed(c1, True, speed_cap), c1, True, speed_cap)
+    exit_state = planner.end_state(planner.end_speed(c2, False, speed_cap), c2, False,
+                                   speed_cap)
     parts = None
     for _ in range(_END_TRIES):
         try:
-            arc = planner.solve(v_in, v_out)
+            arc = planner.solve(entry, exit_state)
         except _NoMotion:
             break
         parts = _with_lines(path, limits, speed_cap, *arc)
         if parts is not None:
             break
-        # A line cannot reach the arc's entry (exit) state: ask for a slower one.
+        # A line cannot reach the arc's entry (exit) state: ask for a slower one at rest
+        # acceleration.
         if _with_lines(path, limits, speed_cap, arc[0], arc[1], (0.0, 0.0)) is None:
-            v_in = _END_RETRY_FACTOR * min(v_in, arc[1][0])
+            entry = (_END_RETRY_FACTOR * min(entry[0], arc[1][0]), 0.0)
         else:
-            v_out = _END_RETRY_FACTOR * min(v_out, arc[2][0])
+            exit_state = (_END_RETRY_FACTOR * min(exit_state[0], arc[2][0]), 0.0)
     if parts is None:
-        parts = _with_lines(path, limits, speed_cap, *planner.fallback(v_in, v_out))
+        parts = _with_lines(path, limits, speed_cap,
+                            *planner.fallback(entry[0], exit_state[0]))
     if parts is None:
         raise LimitError('time-optimal profile: expected vertical segments that reach the '
                          'arc within the limits, got none')

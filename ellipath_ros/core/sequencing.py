@@ -29,7 +29,8 @@ ended:
 * intake (:meth:`Sequencer.submit`, fast, called from subscription callbacks) puts a pair in a
   bounded queue, or rejects the newest pair when the queue is full;
 * planning (:meth:`Sequencer.next_to_plan`, one worker) plans the pairs one by one in arrival
-  order, each from the end of the motion planned before it, and holds the result;
+  order (belt picks: in latch order), each from the end of the motion planned before it, and
+  holds the result;
 * release (:meth:`Sequencer.wait_for_release`, one worker) hands the oldest held motion over
   when the motion released before it has ended at the latest (see :class:`Release`), or, with
   ``ahead`` stamps, as soon as that motion rests in its final dwell, stamped to start exactly
@@ -234,21 +235,26 @@ class PlannedMotion:
 
     @property
     def final_rest(self):
-        """
-        Return how long the trajectory rests at its last point before its end [s].
+        """Return how long the trajectory rests at its last point before its end [s]."""
+        return final_rest(self.trajectory)
 
-        A dwell (``place_dwell``) is a last segment between two points of equal positions with
-        zero velocities and accelerations (to ``REST_TOLERANCE``, the rounding left by the
-        timing): JTC's quintic there is constant.
-        """
-        times = self.trajectory.time_from_start
-        if times.size < 2:
-            return 0.0
-        trajectory = self.trajectory
-        at_rest = all(np.all(np.abs(values) <= REST_TOLERANCE) for values in (
-            trajectory.positions[-1] - trajectory.positions[-2], trajectory.velocities[-2:],
-            trajectory.accelerations[-2:]))
-        return float(times[-1] - times[-2]) if at_rest else 0.0
+
+def final_rest(trajectory):
+    """
+    Return how long a JointTrajectoryData rests at its last point before its end [s].
+
+    A dwell (``place_dwell``) is a last segment between two points of equal positions with
+    zero velocities and accelerations (to ``REST_TOLERANCE``, the rounding left by the
+    timing): JTC's quintic there is constant. A belt pick onto a moving place ends with its
+    exit, not at rest before its end: 0.
+    """
+    times = trajectory.time_from_start
+    if times.size < 2:
+        return 0.0
+    at_rest = all(np.all(np.abs(values) <= REST_TOLERANCE) for values in (
+        trajectory.positions[-1] - trajectory.positions[-2], trajectory.velocities[-2:],
+        trajectory.accelerations[-2:]))
+    return float(times[-1] - times[-2]) if at_rest else 0.0
 
 
 @dataclass(frozen=True)
@@ -415,7 +421,8 @@ class Sequencer:
 
         ``received`` = ``released`` + ``rejected`` + ``dropped`` + ``queued`` (waiting, being
         planned or held) + ``releasing`` (taken for release, being checked and published).
-        ``planned`` counts successful plans (a pair re-planned at release counts once).
+        ``planned`` counts successful plans (a pair re-planned at release or put back by
+        :meth:`requeue_held` counts once).
         ``rejected_<kind>`` and ``dropped_<kind>`` split ``rejected`` and ``dropped`` by the
         kind of their status (``queue_full``, ``unpaired``, ``cleared``, ...).
         """
@@ -506,9 +513,15 @@ class Sequencer:
 
     # --- planning ---------------------------------------------------------------------------
 
-    def take_for_planning(self, now=None):
+    def take_for_planning(self, now=None, by_latch=False):
         """
         Take the oldest waiting pair for planning, without blocking.
+
+        With ``by_latch`` (belt picks), the pair latched first instead (its ``latch_time``;
+        pairs latched together, or without a latch time, in arrival order): the rule of
+        :func:`~.conveyor.next_belt_pick`'s ``latch`` order, the first object in latch order
+        that can still be caught, the others waiting their turn; one the robot can no longer
+        catch is rejected by its plan, with its status.
 
         Returns
         -------
@@ -522,7 +535,11 @@ class Sequencer:
         with self._condition:
             if not self._waiting or self._planning is not None:
                 return None
-            request = self._waiting.popleft()
+            if by_latch:
+                request = min(self._waiting, key=_latch_order)
+                self._waiting.remove(request)
+            else:
+                request = self._waiting.popleft()
             self._planning, self._planning_cancelled = request, False
             if self._held:
                 start = self._held[-1].end_position
@@ -534,12 +551,12 @@ class Sequencer:
                 start = None
             return request, start
 
-    def next_to_plan(self, timeout):
+    def next_to_plan(self, timeout, by_latch=False):
         """Block up to ``timeout`` s for :meth:`take_for_planning`; None on timeout or stop."""
         deadline = time.monotonic() + timeout
         with self._condition:
             while not self._stopped:
-                taken = self.take_for_planning()
+                taken = self.take_for_planning(by_latch=by_latch)
                 if taken is not None:
                     return taken
                 remaining = deadline - time.monotonic()
@@ -699,6 +716,33 @@ class Sequencer:
 
     # --- clearing and stopping --------------------------------------------------------------
 
+    def requeue_held(self, stale):
+        """
+        Put held motions back to be planned again, from the first for which ``stale`` is true.
+
+        The held motions run back to back, each planned from the end of the one before, so
+        those after a stale one go back too. Their pairs wait again at the front, in their
+        order; ``planned`` counts each pair's plans once (see :meth:`counts`). Called by the
+        planning worker between two plans (none is in progress then): a belt pick planned for
+        a belt velocity that has since changed.
+
+        Returns
+        -------
+        list of int
+            The numbers of the pairs put back, in their order.
+
+        """
+        with self._condition:
+            first = next((index for index, motion in enumerate(self._held) if stale(motion)),
+                         None)
+            if first is None:
+                return []
+            requests = [self._held.pop().request for _ in range(len(self._held) - first)]
+            self._waiting.extendleft(requests)  # reversed twice: in their order
+            self._counts['planned'] -= len(requests)
+            self._condition.notify_all()
+            return [request.number for request in reversed(requests)]
+
     def clear(self):
         """
         Drop every pair waiting, being planned or held; never the running trajectory.
@@ -727,6 +771,13 @@ class Sequencer:
         with self._condition:
             self._stopped = True
             self._condition.notify_all()
+
+
+def _latch_order(request):
+    """Return the sort key of a waiting pair in latch order (see take_for_planning)."""
+    if request.latch_time is None:
+        return (0, 0.0, request.number)
+    return (1, request.latch_time, request.number)
 
 
 def track_deviation(release, measured, measured_at, geometry):

@@ -247,8 +247,10 @@ SETTINGS = (
          'static picks. A fresh conveyor_twist overrides it. A pick header.stamp is the time '
          'the object was at that position (zero = on receipt)', 'conveyor'),
     _row('place_conveyor_velocity', 'double_array', (0.0, 0.0, 0.0), 'm/s',
-         'Place belt (tray) velocity in the base frame, zero or parallel to the pick belt; '
-         'zero = static places', 'conveyor'),
+         'Place belt (tray) velocity in the base frame, at any angle to the pick belt, speed '
+         'at most 2 m/s; zero = static places. The place is where the tray is at the place '
+         'instant; at an angle the pick dwell is extended a little to meet it exactly',
+         'conveyor'),
     _row('tracking_window_upstream', 'double', -0.3, 'm',
          'Tracking window: upstream limit along the pick belt direction (TCP position '
          'projected on the unit belt velocity); an object upstream of it is picked as it '
@@ -262,8 +264,9 @@ SETTINGS = (
          'conveyor_velocity for this long after its arrival; 0 never uses it', 'conveyor',
          low=0.0, high=60.0),
     _row('conveyor_replan_tolerance', 'double', 0.001, 'm/s',
-         'At release, a belt pick planned for a belt velocity further than this from the '
-         'current one is re-planned (as is one whose planned start has passed)', 'conveyor',
+         'A held belt pick planned for a belt velocity further than this from the current '
+         'one is planned again, with those held after it, while the robot runs; at release '
+         'at the latest (as is one whose planned start has passed)', 'conveyor',
          low=0.0, high=1.0),
     # --- robot geometry and joint position limits -------------------------------------------
     _core('base_radius', 'double', 0.2, 'm', 'R: base centre to actuator axis', 'geometry',

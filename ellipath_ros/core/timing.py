@@ -111,7 +111,9 @@ def time_motion(path, limits=None, profile='time_optimal', r=0.77, speed_cap=Non
     ``time_optimal``: the vertical segments are straight, so Ruckig times them
     exactly (from rest to the arc's entry state, from its exit state to rest).
     Entry and exit speeds are the largest the acceleration step, the
-    curvature, the cap and the clearance allow, with s'' = 0 there. On the
+    curvature, the cap and the clearance allow, with s'' = 0 there, except
+    at a G2 end, where the lift may still brake into the arc (the descent
+    start still speed up) if a probe finds that faster. On the
     arc, a scan integrates s''' in steps of ``_SCAN_STEP`` (shorter on tight
     curvature) forwards from T1 and, mirrored, backwards from T2. Each step
     takes the largest jerk legal at both of its ends, aims s'' at the largest

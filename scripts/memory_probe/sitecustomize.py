@@ -1,0 +1,95 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sample the memory of ``ellipath_node`` from inside it (an experiment, docs/reliability.md).
+
+Python imports ``sitecustomize`` at start-up from the path: with this directory on
+``PYTHONPATH`` and ``ELLIPATH_MEMORY_PROBE`` naming a file, a process started as
+``python -m ellipath_ros.node`` (as scripts/flood.py and scripts/soak.py start it) writes a
+JSON line every ``ELLIPATH_MEMORY_PROBE_PERIOD`` seconds (default 20): VmRSS by kind of
+mapping (``[heap]`` is glibc's main arena; ``anon`` its other arenas, Python's and large
+mapped blocks; ``file`` the libraries; ``shm`` Fast DDS's shared memory), glibc's
+``mallinfo2`` over every arena (``in_use``: allocated; ``kept``: freed but kept by the
+allocator; ``mapped``: blocks mapped on their own), the Python heap's blocks and the number of
+threads. Other processes are not touched::
+
+    PYTHONPATH=scripts/memory_probe ELLIPATH_MEMORY_PROBE=/tmp/probe.jsonl \
+        ROS_DOMAIN_ID=45 .venv/bin/python scripts/soak.py node --minutes 8 --rate 3
+
+(No ``gc.get_objects()`` here: a list of every object, taken from another thread, can catch a
+tuple that ``tuple()`` is still building, which then fails with a SystemError.)
+"""
+
+import ctypes
+import json
+import os
+import sys
+import threading
+import time
+
+
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        'arena', 'ordblks', 'smblks', 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks',
+        'fordblks', 'keepcost')]
+
+
+def _is_the_node():
+    try:
+        with open('/proc/self/cmdline', 'rb') as cmdline:
+            return b'ellipath_ros.node' in cmdline.read().split(b'\0')
+    except OSError:
+        return False
+
+
+def _resident_by_kind():
+    """Return the resident memory [KiB] of this process by kind of mapping."""
+    kinds = {}
+    kind = None
+    with open('/proc/self/smaps') as smaps:
+        for line in smaps:
+            fields = line.split()
+            if fields[0] == 'Rss:':
+                kinds[kind] = kinds.get(kind, 0) + int(fields[1])
+            elif '-' in fields[0] and not fields[0].endswith(':'):
+                path = fields[5] if len(fields) > 5 else ''
+                kind = ('anon' if not path else 'shm' if path.startswith('/dev/shm')
+                        else path if path.startswith('[') else 'file')
+    return kinds
+
+
+def _sample(mallinfo2, started):
+    info = mallinfo2()
+    return {'t': round(time.monotonic() - started), 'resident_kib': _resident_by_kind(),
+            'in_use_kib': info.uordblks // 1024, 'kept_kib': info.fordblks // 1024,
+            'mapped_kib': info.hblkhd // 1024, 'python_blocks': sys.getallocatedblocks(),
+            'threads': len(os.listdir('/proc/self/task'))}
+
+
+def _probe(path, period):
+    mallinfo2 = ctypes.CDLL(None).mallinfo2
+    mallinfo2.restype = _Mallinfo2
+    started = time.monotonic()
+    with open(path, 'w') as out:
+        while True:
+            time.sleep(period)
+            out.write(json.dumps(_sample(mallinfo2, started)) + '\n')
+            out.flush()
+
+
+if os.environ.get('ELLIPATH_MEMORY_PROBE') and _is_the_node():
+    threading.Thread(target=_probe, name='memory_probe', daemon=True, args=(
+        os.environ['ELLIPATH_MEMORY_PROBE'],
+        float(os.environ.get('ELLIPATH_MEMORY_PROBE_PERIOD', '20')))).start()

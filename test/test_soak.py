@@ -1,0 +1,178 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The node's memory over long runs: the soak's verdict, the node's malloc policy, a short soak.
+
+The long runs (30 minutes of the node, 100,000 plans) are scripts, see docs/reliability.md;
+the short soak here (15 s) only checks that the script's report is complete and honest.
+"""
+
+import os
+import subprocess
+import sys
+
+from ellipath_ros.node import MALLOC_ARENA_MAX
+from ellipath_ros.node import MALLOC_MMAP_THRESHOLD
+import pytest
+
+ROS_DOMAIN_OFFSET = 7  # see conftest.py
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), 'scripts'))
+import soak  # noqa: E402, I100 (scripts/ is not a package)
+
+BUFFERS = {'statuses_buffer': ('statuses', 100), 'trajectories_buffer': ('trajectories', 10)}
+
+
+def samples(rss_of_time, statuses_per_s=4.0, trajectories_per_s=2.0, seconds=600, every=10):
+    """Return memory samples of a run whose VmRSS is ``rss_of_time(t)`` [KiB]."""
+    result = []
+    for t in range(every, seconds + 1, every):
+        rss = rss_of_time(t)
+        result.append({'t': float(t), 'offered': t, 'statuses': int(statuses_per_s * t),
+                       'trajectories': int(trajectories_per_s * t), 'rss': rss,
+                       'anon': rss - 60_000, 'file': 58_000, 'shmem': 2_000})
+    return result
+
+
+def test_the_warm_up_ends_when_the_last_buffer_is_full():
+    # 100 statuses at 4/s: t = 25 s, first sampled at 30 s; 10 trajectories at 2/s: t = 5 s.
+    full, end = soak.warm_up(samples(lambda t: 90_000), buffers=BUFFERS)
+    assert full == {'statuses_buffer': 30.0, 'trajectories_buffer': 10.0}
+    assert end == 30.0
+    full, end = soak.warm_up(samples(lambda t: 90_000, statuses_per_s=0.1), buffers=BUFFERS)
+    assert full['statuses_buffer'] is None and end is None
+
+
+def test_growth_during_the_warm_up_is_not_counted_and_growth_after_it_is():
+    # 5 MiB during the first 30 s (until the statuses buffer is full), then flat.
+    warm = soak.memory_verdict(samples(lambda t: 90_000 + 5_000 * min(t, 30) // 30),
+                               buffers=BUFFERS)
+    assert warm['warm_up_end_s'] == 30.0 and warm['verdict'] == 'flat'
+    assert warm['growth']['rss']['last_less_first_kib'] == 0
+    # 60 KiB per minute throughout, as the node of the last round: 570 KiB after 30 s.
+    growing = soak.memory_verdict(samples(lambda t: 90_000 + t), buffers=BUFFERS)
+    assert growing['verdict'] == 'growing'
+    assert growing['growth']['rss']['fitted_rise_kib'] == pytest.approx(570.0)
+    assert growing['growth']['anon']['per_10_min_kib'] == pytest.approx(600.0)
+    # A buffer that never fills: no verdict, whatever the memory did.
+    never = soak.memory_verdict(samples(lambda t: 90_000, statuses_per_s=0.1),
+                                buffers=BUFFERS)
+    assert never['verdict'] == 'no warm-up' and 'growth' not in never
+
+
+def test_the_verdict_fits_a_line_through_noisy_samples():
+    # +-400 KiB of alternating noise (large arrays mapped at some samples), no trend.
+    noisy = soak.memory_verdict(samples(lambda t: 90_000 + (400 if t % 20 else -400)),
+                                buffers=BUFFERS)
+    assert noisy['verdict'] == 'flat'
+    assert abs(noisy['growth']['rss']['fitted_rise_kib']) < 100.0
+
+
+# Run in a process of its own: threads that each allocate, then the number of glibc arenas
+# (heaps of malloc_info), and whether a block above the threshold is mapped again after a
+# larger one was freed (glibc's default raises its mmap threshold to the largest block freed).
+ALLOCATOR_PROBE = r"""
+import ctypes, os, re, sys, tempfile, threading
+from ellipath_ros.node import MALLOC_MMAP_THRESHOLD, set_malloc_policy
+libc = ctypes.CDLL(None)
+libc.malloc.restype = ctypes.c_void_p
+libc.free.argtypes = (ctypes.c_void_p,)
+libc.fopen.restype = ctypes.c_void_p
+libc.fopen.argtypes = (ctypes.c_char_p, ctypes.c_char_p)
+libc.malloc_info.argtypes = (ctypes.c_int, ctypes.c_void_p)
+libc.fclose.argtypes = (ctypes.c_void_p,)
+class Mallinfo(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        'arena', 'ordblks', 'smblks', 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks',
+        'fordblks', 'keepcost')]
+libc.mallinfo2.restype = Mallinfo
+def arenas():
+    path = os.path.join(tempfile.mkdtemp(), 'info.xml')
+    stream = libc.fopen(path.encode(), b'w')
+    libc.malloc_info(0, stream)
+    libc.fclose(stream)
+    return len(re.findall('<heap nr=', open(path).read()))
+# The imports have started threads of their own (and arenas) before main() can set it.
+arenas_before = arenas()
+policy = set_malloc_policy(os.environ)
+barrier = threading.Barrier(6)
+def allocate():
+    block = libc.malloc(4096)
+    barrier.wait()  # all alive at once, so that none reuses the arena of one that ended
+    libc.free(block)
+threads = [threading.Thread(target=allocate) for _ in range(6)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+new_arenas = arenas() - arenas_before
+large = libc.malloc(4 * MALLOC_MMAP_THRESHOLD)
+libc.free(large)
+mapped_before = libc.mallinfo2().hblkhd
+block = libc.malloc(2 * MALLOC_MMAP_THRESHOLD)
+mapped = libc.mallinfo2().hblkhd > mapped_before
+libc.free(block)
+print(policy, arenas_before, new_arenas, mapped)
+"""
+
+
+def allocator_probe(**environment):
+    """
+    Run ALLOCATOR_PROBE; return (policy set, arenas, new arenas, a large block mapped).
+
+    arenas: glibc's arenas before the policy was set; new arenas: those made after it by six
+    threads that each allocate; a large block mapped: one above MALLOC_MMAP_THRESHOLD, after
+    a larger one was freed.
+    """
+    env = {name: value for name, value in os.environ.items()
+           if name not in ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'GLIBC_TUNABLES')}
+    env.update(environment)
+    output = subprocess.run([sys.executable, '-c', ALLOCATOR_PROBE], env=env, check=True,
+                            capture_output=True, text=True, timeout=60).stdout.split()
+    return output[0] == 'True', int(output[1]), int(output[2]), output[3] == 'True'
+
+
+def test_the_node_limits_glibcs_arenas_and_fixes_its_mmap_threshold():
+    if not os.confstr('CS_GNU_LIBC_VERSION'):
+        pytest.skip('glibc only: other allocators have no arenas to limit')
+    policy, arenas, new_arenas, mapped = allocator_probe()
+    assert policy
+    # No new arena once there are MALLOC_ARENA_MAX (those made during the imports stay).
+    assert new_arenas <= max(0, MALLOC_ARENA_MAX - arenas), (arenas, new_arenas)
+    assert mapped, f'a block of {2 * MALLOC_MMAP_THRESHOLD} B came from an arena'
+    # The caller's own policy prevails; glibc's default then shows what the policy changes.
+    policy, arenas, new_arenas, mapped = allocator_probe(MALLOC_ARENA_MAX='16')
+    assert not policy
+    assert new_arenas >= 6 - 1, (arenas, new_arenas)
+    assert not mapped, 'glibc raised its threshold after the larger block was freed'
+
+
+@pytest.fixture(scope='module')
+def short_soak(ros_domain_id, monkeypatch_module):
+    """Run the node for 15 s at 2 pairs/s, sampled every 2 s."""
+    monkeypatch_module.setenv('ROS_DOMAIN_ID', str(ros_domain_id))
+    return soak.soak_node(minutes=0.25, rate=2.0, seed=5, every=2.0)
+
+
+def test_a_short_soak_accounts_for_every_pair_and_claims_no_verdict(short_soak):
+    assert short_soak['ok'], short_soak['node_log']
+    assert short_soak['node']['pairs_released'] == short_soak['sender']['pairs_sent']
+    memory = short_soak['memory']
+    per_minute = memory['per_minute_kib']
+    assert set(per_minute) == set(soak.MEMORY_KEYS)
+    assert all(value > 0 for value in per_minute['rss'])
+    # About 30 statuses: the /diagnostics history is far from full, so nothing is claimed.
+    assert memory['buffers']['diagnostics_history']['full_at_s'] is None
+    assert memory['verdict'] == 'no warm-up'
