@@ -95,6 +95,7 @@ from ellipath_ros.conversions import seconds_from_time
 from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.errors import LateReleaseError
 from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import check_reachable
@@ -212,6 +213,9 @@ BELT_START_MARGIN = 0.02  # s
 BELT_PLAN_TIME_GUESS = 0.5
 # A belt pick started later by shortening its initial wait keeps at least this much of it [s].
 MIN_WAIT_LEFT = 1e-3
+# A belt pick found late when its message is about to go out is checked again (started later
+# or re-planned) at most this often, then dropped with a status.
+BELT_RELEASE_TRIES = 3
 
 
 class OffTrajectoryError(EllipathError):
@@ -694,14 +698,7 @@ class EllipathNode(Node):
         try:
             motion, check = self._checked_start(motion, settings)
         except EllipathError as error:
-            self._sequencer.release_failed(error.kind)
-            if self._sequencer.stopped:
-                return  # shutting down: the context may be gone
-            reason = f'pair {request.number} dropped at release: {error}'
-            self.get_logger().error(reason)
-            self._publish_status(DiagnosticStatus.ERROR, reason, {
-                'topic': request.topic, 'kind': error.kind, 'pair': request.number,
-                **self._queue_values()})
+            self._drop_at_release(request, error.kind, str(error))
             return
         except Exception as error:  # a bug in one release must not stop the thread
             self._sequencer.release_failed('internal')
@@ -710,14 +707,22 @@ class EllipathNode(Node):
         if self._sequencer.stopped:  # shutting down: nothing new is sent to the robot
             self._sequencer.release_failed('stopped')
             return
-        message = motion.details['message']
         belt_start = motion.details.get('belt_start')
         if belt_start is not None:
-            published, start_time = self._publish_belt(motion, message)
+            try:
+                released = self._release_belt(motion, settings)
+            except EllipathError as error:
+                self._drop_at_release(request, error.kind, str(error))
+                return
+            if released is None:
+                self._sequencer.release_failed('stopped')
+                return
+            motion, published, start_time = released
             release = self._sequencer.released(motion, published, 'ahead',
                                                settings.controller_period,
                                                settings.release_lead, start=start_time)
         elif settings.header_stamp == 'ahead':
+            message = motion.details['message']
             # The stamp and the node's record of it come from back-to-back clock readings.
             published = time.monotonic()
             now = self.get_clock().now()
@@ -735,6 +740,7 @@ class EllipathNode(Node):
                                start_time + Duration(seconds=last.sec, nanoseconds=last.nanosec))
             self._trajectory_publisher.publish(message)
         else:
+            message = motion.details['message']
             self._trajectory_publisher.publish(message)
             # Read after publishing, so the latest start (this + controller_period) is not
             # underestimated by the time publish() takes.
@@ -748,19 +754,56 @@ class EllipathNode(Node):
                              self._release_values(release, check))
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(
-                motion.details['plan'], settings.frame_id, message.header.stamp))
+                motion.details['plan'], settings.frame_id, motion.details['message'].header.stamp))
 
-    def _publish_belt(self, motion, message):
+    def _drop_at_release(self, request, kind, error):
+        """Count the pair taken for release as dropped as ``kind`` and say why."""
+        self._sequencer.release_failed(kind)
+        if self._sequencer.stopped:
+            return  # shutting down: the context may be gone
+        reason = f'pair {request.number} dropped at release: {error}'
+        self.get_logger().error(reason)
+        self._publish_status(DiagnosticStatus.ERROR, reason, {
+            'topic': request.topic, 'kind': kind, 'pair': request.number,
+            **self._queue_values()})
+
+    def _release_belt(self, motion, settings):
+        """
+        Publish a belt pick whose stamp is still release_lead ahead; (motion, published, start).
+
+        Checking the start and publishing are not one step: a release thread held up in
+        between (a loaded host, a re-plan that outlasts the lead) would send a stamp already
+        past, and the controller would start mid-motion, a jump. So the stamp is compared
+        with the clock right before the message goes out, and a late pick is checked again
+        (started later or re-planned), at most BELT_RELEASE_TRIES times. Returns None when
+        the node is shutting down; raises LateReleaseError when every try was late.
+        """
+        for _ in range(BELT_RELEASE_TRIES):
+            motion = self._checked_belt(motion, settings)
+            if self._sequencer.stopped:
+                return None
+            released = self._publish_belt(motion, motion.details['message'],
+                                          settings.release_lead)
+            if released is not None:
+                return (motion, *released)
+        raise LateReleaseError(
+            f'belt start: expected its stamp at least release_lead {settings.release_lead:g} s '
+            f'after publication, got it late {BELT_RELEASE_TRIES} times in a row')
+
+    def _publish_belt(self, motion, message, lead):
         """
         Publish a belt pick stamped at its planned start; return (published, start) clock times.
 
         The controller holds the robot at the first point until the stamp, so the motion
-        starts exactly when its intercept was planned for.
+        starts exactly when its intercept was planned for. Nothing is published, and None
+        returned, when the stamp is less than ``lead`` [s] ahead of the clock.
         """
         belt_start = motion.details['belt_start']
         published = time.monotonic()
         now = self.get_clock().now()
         start_ns = int(round(belt_start * 1e9))
+        if start_ns - now.nanoseconds < lead * 1e9:
+            return None
         message.header.stamp = Time(sec=start_ns // 1_000_000_000,
                                     nanosec=start_ns % 1_000_000_000)
         self._trajectory_publisher.publish(message)
@@ -823,7 +866,7 @@ class EllipathNode(Node):
                 f'the start of its trajectory ({check.basis}): re-planned from there')
             motion = self._plan(motion.request, check.position, f'replanned_{check.basis}',
                                 settings)
-        return self._checked_belt(motion, settings), check
+        return motion, check
 
     def _joint_state_after(self, after, settings):
         """Wait up to joint_state_timeout for a joint state measured after ``after``."""

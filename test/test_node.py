@@ -42,6 +42,7 @@ from ellipath_ros.core.controller import JazzyJtcEmulator
 from ellipath_ros.core.controller import planned_tcp_path
 from ellipath_ros.core.controller import visit_times
 from ellipath_ros.core.errors import EllipathError
+from ellipath_ros.core.errors import LateReleaseError
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -1125,3 +1126,35 @@ def test_a_held_belt_pick_is_replanned_when_the_twist_changes_the_belt_speed(mak
                                   np.array([latch + after_latch - stamp_seconds(trajectory)]))
     expected = pick + np.array([0.2, 0.0, 0.0]) * after_latch
     assert np.linalg.norm(forward_kinematics(q, GEOMETRY)[0] - expected) <= 1e-4
+
+
+def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_harness):
+    # Checking a belt pick's start and publishing it are not one step: a release thread held
+    # up in between would send a stamp already past (the controller would start mid-motion).
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
+    node = harness.node
+    settings = build_settings({name: node.get_parameter(name).value
+                               for name in default_values()})
+    latch, _ = node_now(harness)
+    request = PairRequest(1, np.array([-3.0, 0.0, -0.85]), np.array([0.15, 0.2, -0.8]),
+                          time.monotonic(), 'pick_place', latch)
+    # Planned for a start already past (its object far upstream: the plan waits for it).
+    late = node._plan(request, np.array(HOME), 'home_position', settings,
+                      belt_start=latch - 0.5)
+    sent = []
+    node._trajectory_publisher.publish = sent.append
+    # A start less than release_lead ahead is not published.
+    assert node._publish_belt(late, late.details['message'], settings.release_lead) is None
+    assert sent == []
+    # A check that always hands back a start already past: dropped after the tries, unsent.
+    node._checked_belt = lambda motion, settings: late
+    with pytest.raises(LateReleaseError, match='release_lead'):
+        node._release_belt(late, settings)
+    assert sent == []
+    # Checked again, its start ahead: published with that stamp.
+    del node._checked_belt
+    motion, published, start = node._release_belt(late, settings)
+    assert len(sent) == 1
+    stamp = sent[0].header.stamp.sec + sent[0].header.stamp.nanosec * 1e-9
+    assert stamp == pytest.approx(motion.details['belt_start'], abs=1e-9)
+    assert stamp >= node_now(harness)[0]

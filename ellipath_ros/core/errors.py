@@ -67,6 +67,12 @@ class MissedError(EllipathError):
     kind = 'missed'
 
 
+class LateReleaseError(EllipathError):
+    """A belt pick's stamp was past, or too close, every time it was about to be published."""
+
+    kind = 'late'
+
+
 def require_finite(name, value):
     """Return ``value`` as float, or raise if it is not a finite number."""
     try:
