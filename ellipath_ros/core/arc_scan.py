@@ -66,20 +66,15 @@ class _StepBudget:
     __slots__ = ('left',)
 
     def __init__(self, steps):
+        # Spent by _Scanner.advance, which raises _NoMotion once it is below 0.
         self.left = steps
-
-    def spend(self):
-        """Count one step; raise _NoMotion once the budget is spent."""
-        self.left -= 1
-        if self.left < 0:
-            raise _NoMotion()
 
 
 class _ArcTable:
     """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
 
     __slots__ = ('length', 'step', 'last', 'arrays', 'kappa', 'kappa_s', 'cap', 'kappa_rise',
-                 'kappa_s_rise')
+                 'kappa_s_rise', 'at')
 
     def __init__(self, length, kappa, kappa_s, cap):
         """Build the table from NumPy arrays of equal length (grid points; cap per cell)."""
@@ -91,19 +86,33 @@ class _ArcTable:
         # cell's rise too, so that interpolating reads one value less.
         self.kappa, self.kappa_s, self.cap = kappa.tolist(), kappa_s.tolist(), cap.tolist()
         self.kappa_rise, self.kappa_s_rise = np.diff(kappa).tolist(), np.diff(kappa_s).tolist()
+        self.at = _lookup(self)
 
     def backwards(self):
         """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
         kappa, kappa_s, cap = self.arrays
         return _ArcTable(self.length, kappa[::-1], -kappa_s[::-1], cap[::-1])
 
-    def at(self, s):
-        """Return (kappa, dkappa/ds, speed cap) at arc length s (the scan inlines this)."""
-        x = s / self.step
-        index = min(max(int(x), 0), self.last)
+
+def _lookup(table):
+    """Return at(s) -> (kappa, dkappa/ds, speed cap) at arc length s, read from ``table``."""
+    step, last, cap = table.step, table.last, table.cap
+    kappa, kappa_rise, kappa_s, kappa_s_rise = (
+        table.kappa, table.kappa_rise, table.kappa_s, table.kappa_s_rise)
+
+    # A closure over plain lists, local names being the cheapest reads Python has: the scan
+    # steps read the table through it where they do not interpolate inline.
+    def at(s):
+        x = s / step
+        index = int(x)
+        if index < 0:
+            index = 0
+        elif index > last:
+            index = last
         fraction = x - index
-        return (self.kappa[index] + fraction * self.kappa_rise[index],
-                self.kappa_s[index] + fraction * self.kappa_s_rise[index], self.cap[index])
+        return (kappa[index] + fraction * kappa_rise[index],
+                kappa_s[index] + fraction * kappa_s_rise[index], cap[index])
+    return at
 
 
 class _Scan:
@@ -145,15 +154,26 @@ class _Scan:
 
     def time_at(self, s_query):
         """Return the time at which the scan reaches ``s_query`` (within its range)."""
-        index = min(max(bisect_right(self.s, s_query) - 1, 0), max(len(self.j) - 1, 0))
-        low, high = self.t[index], self.t[min(index + 1, len(self.t) - 1)]
+        t, s, v, a, j = self.t, self.s, self.v, self.a, self.j
+        if not j:
+            return t[0]
+        last = len(j) - 1
+        index = min(max(bisect_right(s, s_query) - 1, 0), last)
+        low, high = t[index], t[min(index + 1, len(t) - 1)]
+        # Bisection on the position, each piece evaluated as :meth:`state` does (same piece,
+        # same arithmetic); it stops once the middle no longer moves.
+        middle = 0.5 * (low + high)
         for _ in range(60):
-            middle = 0.5 * (low + high)
-            if self.state(middle)[0] < s_query:
+            piece = min(max(bisect_right(t, middle) - 1, 0), last)
+            x = middle - t[piece]
+            if s[piece] + x * (v[piece] + x * (a[piece] / 2.0 + x * j[piece] / 6.0)) < s_query:
                 low = middle
             else:
                 high = middle
-        return 0.5 * (low + high)
+            previous, middle = middle, 0.5 * (low + high)
+            if middle == previous:
+                break
+        return middle
 
     def rows(self, time):
         """Return the pieces from the start to ``time``."""
@@ -192,6 +212,11 @@ class _Scanner:
         self.factor = None
         self._jerk_squared = self.jerk ** 2
         self._accel_squared = self.accel ** 2
+        # What every step reads, in one tuple (one attribute read instead of a dozen).
+        self._constants = (
+            table.step, table.last, table.cap, table.kappa, table.kappa_rise, table.kappa_s,
+            table.kappa_s_rise, self.speed, self.jerk, self.accel, self._jerk_squared,
+            self._accel_squared)
 
     def jerk_range(self, s, v, a):
         """Return the (lowest, highest) s''' keeping |jerk| <= limit at (s, v, a), or None."""
@@ -219,31 +244,27 @@ class _Scanner:
         # and every attribute read once, since a Python call, tuple or attribute read costs as
         # much as the arithmetic itself.
         sqrt = math.sqrt
-        table = self.table
-        cell, last, caps = table.step, table.last, table.cap
-        kappas, kappa_rises = table.kappa, table.kappa_rise
-        kappa_ss, kappa_s_rises = table.kappa_s, table.kappa_s_rise
-        jerk_limit, accel_limit = self.jerk, self.accel
-        jerk_squared, accel_squared = self._jerk_squared, self._accel_squared
-        s, v, a = scan.s[-1], scan.v[-1], scan.a[-1]
-        if scan.reading is None:
-            kappa, kappa_s, cap = table.at(s)
+        (cell, last, caps, kappas, kappa_rises, kappa_ss, kappa_s_rises, speed, jerk_limit,
+         accel_limit, jerk_squared, accel_squared) = self._constants
+        reading = scan.reading
+        if reading is None:
+            s, v, a = scan.s[-1], scan.v[-1], scan.a[-1]
+            kappa, kappa_s, cap = self.table.at(s)
             # The jerk range at (s, v, a): |jerk|**2 = (s''' - kappa**2 v**3)**2
-            # + (kappa_s v**3 + 3 kappa v a)**2.
+            # + (kappa_s v**3 + 3 kappa v a)**2, the middle of the range kappa**2 v**3.
             v3 = v * v * v
             normal = kappa_s * v3 + 3.0 * kappa * v * a
             if normal >= jerk_limit or -normal >= jerk_limit:
                 return 'speed'
-            room = sqrt(jerk_squared - normal * normal)
+            middle, room = kappa * kappa * v3, sqrt(jerk_squared - normal * normal)
         else:
             # The previous step read the table at this state (and found its jerk range).
-            kappa, kappa_s, cap, v3, room = scan.reading
-        speed = self.speed
+            s, v, a, kappa, kappa_s, cap, middle, room = reading
         if cap < speed:
             speed = cap
         if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
             return 'speed'
-        lowest, highest = kappa * kappa * v3 - room, kappa * kappa * v3 + room
+        lowest, highest = middle - room, middle + room
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
             # The curvature changes fast here (a needle-sharp bend): shorter steps.
@@ -285,8 +306,9 @@ class _Scanner:
             half_a = a / 2.0
             jerk = highest
             for _ in range(12):
-                s_end = s + h * (v + h * (half_a + h * jerk / 6.0))
-                v_end = v + h * (a + h * jerk / 2.0)
+                h_jerk = h * jerk
+                s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
+                v_end = v + h * (a + h_jerk / 2.0)
                 x = s_end / cell
                 cell_index = int(x)
                 index = cell_index
@@ -305,20 +327,22 @@ class _Scanner:
                 # -kappa**2 v**3). Negative where the curvature tightens too fast for the
                 # speed: the scan then slows down. A back-up lowers it.
                 target = None
-                normal_accel = kappa_end * v_end * v_end
+                kappa_v = kappa_end * v_end
+                normal_accel = kappa_v * v_end
                 v_cubed = v_end ** 3
                 centripetal = kappa_end * kappa_end * v_cubed
                 if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
                         and normal_accel < accel_limit and centripetal < jerk_limit):
                     target = sqrt(accel_squared - normal_accel * normal_accel)
                     floor = -target
-                    if kappa_end * v_end > 0.0:
+                    if kappa_v > 0.0:
                         share = normal_share * sqrt(jerk_squared - centripetal ** 2)
+                        change = kappa_s_end * v_cubed
                         divisor = 3.0 * kappa_end * v_end
-                        bound = (share - kappa_s_end * v_cubed) / divisor
+                        bound = (share - change) / divisor
                         if bound < target:
                             target = bound
-                        bound = (-share - kappa_s_end * v_cubed) / divisor
+                        bound = (-share - change) / divisor
                         if bound > floor:
                             floor = bound
                     if factors is not None:
@@ -334,7 +358,7 @@ class _Scanner:
                         return 'speed'
                     jerk = 0.5 * (jerk + lowest)
                     continue
-                if a + jerk * h <= target + 1e-12:
+                if a + h_jerk <= target + 1e-12:
                     read = True
                     break
                 jerk = (target - a) / h
@@ -358,7 +382,7 @@ class _Scanner:
             if not read:
                 s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
                 v_end = v + h * (a + h * trial / 2.0)
-                kappa_end, kappa_s_end, cap_end = table.at(s_end)
+                kappa_end, kappa_s_end, cap_end = self.table.at(s_end)
             read = False
             a_end = a + h * trial
             v3 = v_end * v_end * v_end
@@ -367,8 +391,8 @@ class _Scanner:
                 room = sqrt(jerk_squared - normal * normal)
                 middle = kappa_end * kappa_end * v3
                 if middle - room - 1e-9 <= trial <= middle + room + 1e-9:
-                    legal = (trial, s_end, v_end, a_end,
-                             (kappa_end, kappa_s_end, cap_end, v3, room))
+                    legal_jerk = trial
+                    legal = s_end, v_end, a_end, kappa_end, kappa_s_end, cap_end, middle, room
                     if halving == 0:
                         break
                     low = trial
@@ -378,12 +402,12 @@ class _Scanner:
             trial = 0.5 * (low + high)
         if legal is None:
             return 'accel' if a > 1e-9 else 'speed'
-        jerk, s_end, v_end, a_end, scan.reading = legal
+        scan.reading = legal
         scan.t.append(scan.t[-1] + h)
-        scan.s.append(s_end)
-        scan.v.append(v_end)
-        scan.a.append(a_end)
-        scan.j.append(jerk)
+        scan.s.append(legal[0])
+        scan.v.append(legal[1])
+        scan.a.append(legal[2])
+        scan.j.append(legal_jerk)
         return None
 
     def _level_off(self, v, a, speed, h, level):
@@ -394,11 +418,12 @@ class _Scanner:
 
     def _until_level_off(self, v, a, jerk, h, speed, level):
         """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
-        low, high = 0.0, h
+        low, high, twice_level = 0.0, h, 2.0 * level
         for _ in range(40):
             x = 0.5 * (low + high)
-            a1 = a + jerk * x
-            if v + x * (a + x * jerk / 2.0) + a1 * a1 / (2.0 * level) > speed:
+            jerk_x = jerk * x
+            a1 = a + jerk_x
+            if v + x * (a + jerk_x / 2.0) + a1 * a1 / twice_level > speed:
                 high = x
             else:
                 low = x
@@ -417,7 +442,10 @@ class _Scanner:
         if scan.s[-1] >= scan.end:
             scan.status = 'end'
             return False
-        self.budget.spend()
+        budget = self.budget
+        budget.left -= 1
+        if budget.left < 0:
+            raise _NoMotion()
         failure = self.step(scan)
         if failure is None:
             return True
@@ -432,9 +460,8 @@ class _Scanner:
             self.factor = [1.0] * (len(self.table.kappa) + 1)
         low = max(int(scan.s[first] / step), 0)
         high = min(int((scan.s[last] + _BACK_UP_AHEAD) / step) + 1, len(self.factor))
-        factors = self.factor[low:high]
-        lowered = _BACK_UP_FACTOR * min(factors)
-        self.factor[low:high] = [lowered if lowered < factor else factor for factor in factors]
+        # A share of the stretch's lowest is below every share in it: all become that.
+        self.factor[low:high] = [_BACK_UP_FACTOR * min(self.factor[low:high])] * (high - low)
         for values in (scan.t, scan.s, scan.v, scan.a):
             del values[first + 1:]
         del scan.j[first:]
