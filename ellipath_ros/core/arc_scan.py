@@ -25,6 +25,8 @@ against the plan's :class:`_StepBudget`.
 from bisect import bisect_right
 import math
 
+import numpy as np
+
 from .limits import _ACCEL_MARGIN, _JERK_MARGIN, _SPEED_MARGIN
 
 # Time step of the path-space scans [s]: the short one where the curvature (1/m) is above
@@ -64,39 +66,42 @@ class _StepBudget:
     __slots__ = ('left',)
 
     def __init__(self, steps):
+        # Spent by _Scanner.advance, which raises _NoMotion once it is below 0.
         self.left = steps
-
-    def spend(self):
-        """Count one step; raise _NoMotion once the budget is spent."""
-        self.left -= 1
-        if self.left < 0:
-            raise _NoMotion()
 
 
 class _ArcTable:
     """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
 
-    __slots__ = ('length', 'step', 'last', 'kappa', 'kappa_s', 'cap', 'at', 'cap_at')
+    __slots__ = ('length', 'step', 'last', 'arrays', 'kappa', 'kappa_s', 'cap', 'kappa_rise',
+                 'kappa_s_rise', 'at')
 
     def __init__(self, length, kappa, kappa_s, cap):
-        # Lists, not arrays: the scans read single values, which lists serve faster.
+        """Build the table from NumPy arrays of equal length (grid points; cap per cell)."""
         self.length = length
         self.step = length / (len(kappa) - 1)
         self.last = len(kappa) - 2
-        self.kappa, self.kappa_s, self.cap = kappa, kappa_s, cap
-        self.at = _lookup(self.step, self.last, kappa, kappa_s, cap)
-        self.cap_at = _cap_lookup(self.step, self.last, cap)
+        self.arrays = kappa, kappa_s, cap
+        # Lists, not arrays: the scans read single values, which lists serve faster. Each
+        # cell's rise too, so that interpolating reads one value less.
+        self.kappa, self.kappa_s, self.cap = kappa.tolist(), kappa_s.tolist(), cap.tolist()
+        self.kappa_rise, self.kappa_s_rise = np.diff(kappa).tolist(), np.diff(kappa_s).tolist()
+        self.at = _lookup(self)
 
     def backwards(self):
         """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
-        return _ArcTable(self.length, self.kappa[::-1], [-value for value in self.kappa_s[::-1]],
-                         self.cap[::-1])
+        kappa, kappa_s, cap = self.arrays
+        return _ArcTable(self.length, kappa[::-1], -kappa_s[::-1], cap[::-1])
 
 
-def _lookup(step, last, kappa, kappa_s, cap):
-    """Return at(s) -> (kappa, dkappa/ds, speed cap) at arc length s, read from the lists."""
-    # A closure over plain lists: the scans call it several times per step, and local names
-    # are the cheapest reads Python has.
+def _lookup(table):
+    """Return at(s) -> (kappa, dkappa/ds, speed cap) at arc length s, read from ``table``."""
+    step, last, cap = table.step, table.last, table.cap
+    kappa, kappa_rise, kappa_s, kappa_s_rise = (
+        table.kappa, table.kappa_rise, table.kappa_s, table.kappa_s_rise)
+
+    # A closure over plain lists, local names being the cheapest reads Python has: the scan
+    # steps read the table through it where they do not interpolate inline.
     def at(s):
         x = s / step
         index = int(x)
@@ -105,22 +110,9 @@ def _lookup(step, last, kappa, kappa_s, cap):
         elif index > last:
             index = last
         fraction = x - index
-        low, low_s = kappa[index], kappa_s[index]
-        return (low + fraction * (kappa[index + 1] - low),
-                low_s + fraction * (kappa_s[index + 1] - low_s), cap[index])
+        return (kappa[index] + fraction * kappa_rise[index],
+                kappa_s[index] + fraction * kappa_s_rise[index], cap[index])
     return at
-
-
-def _cap_lookup(step, last, cap):
-    """Return cap_at(s) -> the speed cap of the cell at arc length s (what ``at`` reads)."""
-    def cap_at(s):
-        index = int(s / step)
-        if index < 0:
-            index = 0
-        elif index > last:
-            index = last
-        return cap[index]
-    return cap_at
 
 
 class _Scan:
@@ -133,11 +125,13 @@ class _Scan:
     up after ``failures`` back-ups).
     """
 
-    __slots__ = ('t', 's', 'v', 'a', 'j', 'end', 'status', 'failures')
+    __slots__ = ('t', 's', 'v', 'a', 'j', 'end', 'status', 'failures', 'reading')
 
     def __init__(self, s, v, a, end):
         self.t, self.s, self.v, self.a, self.j = [0.0], [s], [v], [a], []
         self.end, self.status, self.failures = end, 'live', 0
+        # The table read at the last state by the step that reached it (see _Scanner.step).
+        self.reading = None
 
     def speed_at(self, s_query):
         """Return s' at ``s_query`` interpolated between states, or None outside the scan."""
@@ -160,15 +154,26 @@ class _Scan:
 
     def time_at(self, s_query):
         """Return the time at which the scan reaches ``s_query`` (within its range)."""
-        index = min(max(bisect_right(self.s, s_query) - 1, 0), max(len(self.j) - 1, 0))
-        low, high = self.t[index], self.t[min(index + 1, len(self.t) - 1)]
+        t, s, v, a, j = self.t, self.s, self.v, self.a, self.j
+        if not j:
+            return t[0]
+        last = len(j) - 1
+        index = min(max(bisect_right(s, s_query) - 1, 0), last)
+        low, high = t[index], t[min(index + 1, len(t) - 1)]
+        # Bisection on the position, each piece evaluated as :meth:`state` does (same piece,
+        # same arithmetic); it stops once the middle no longer moves.
+        middle = 0.5 * (low + high)
         for _ in range(60):
-            middle = 0.5 * (low + high)
-            if self.state(middle)[0] < s_query:
+            piece = min(max(bisect_right(t, middle) - 1, 0), last)
+            x = middle - t[piece]
+            if s[piece] + x * (v[piece] + x * (a[piece] / 2.0 + x * j[piece] / 6.0)) < s_query:
                 low = middle
             else:
                 high = middle
-        return 0.5 * (low + high)
+            previous, middle = middle, 0.5 * (low + high)
+            if middle == previous:
+                break
+        return middle
 
     def rows(self, time):
         """Return the pieces from the start to ``time``."""
@@ -202,21 +207,20 @@ class _Scanner:
         self.speed = limits.max_speed * _SPEED_MARGIN
         self.accel = limits.max_accel * _ACCEL_MARGIN
         self.jerk = limits.max_jerk * _JERK_MARGIN
-        self.factor = [1.0] * (len(table.kappa) + 1)
-        # The scan's inner loop reads these thousands of times per leg: plain attributes.
-        self._at = table.at
-        self._cap_at = table.cap_at
-        self._accel_squared = self.accel ** 2
+        # Per table cell, the share of the acceleration target left by back-ups; None until
+        # the first (every share 1, which changes no target).
+        self.factor = None
         self._jerk_squared = self.jerk ** 2
-        self._cell = table.step
-        self._last_factor = len(self.factor) - 1
+        self._accel_squared = self.accel ** 2
+        # What every step reads, in one tuple (one attribute read instead of a dozen).
+        self._constants = (
+            table.step, table.last, table.cap, table.kappa, table.kappa_rise, table.kappa_s,
+            table.kappa_s_rise, self.speed, self.jerk, self.accel, self._jerk_squared,
+            self._accel_squared)
 
     def jerk_range(self, s, v, a):
         """Return the (lowest, highest) s''' keeping |jerk| <= limit at (s, v, a), or None."""
-        kappa, kappa_s, _ = self._at(s)
-        return self._jerk_range(kappa, kappa_s, v, a)
-
-    def _jerk_range(self, kappa, kappa_s, v, a):
+        kappa, kappa_s, _ = self.table.at(s)
         # |jerk|**2 = (s''' - kappa**2 v**3)**2 + (kappa_s v**3 + 3 kappa v a)**2.
         v3 = v * v * v
         normal = kappa_s * v3 + 3.0 * kappa * v * a
@@ -225,106 +229,186 @@ class _Scanner:
         room = math.sqrt(self._jerk_squared - normal * normal)
         return kappa * kappa * v3 - room, kappa * kappa * v3 + room
 
-    def _legal(self, s, v, a, h, jerk):
-        """Return whether ``jerk`` held for ``h`` from (s, v, a) is legal at the step's end."""
-        kappa, kappa_s, _ = self._at(s + h * (v + h * (a / 2.0 + h * jerk / 6.0)))
-        v, a = v + h * (a + h * jerk / 2.0), a + h * jerk
-        # _jerk_range at the end state, written out: this runs several times per step.
-        v3 = v * v * v
-        normal = kappa_s * v3 + 3.0 * kappa * v * a
-        if abs(normal) >= self.jerk:
-            return False
-        room = math.sqrt(self._jerk_squared - normal * normal)
-        middle = kappa * kappa * v3
-        return middle - room - 1e-9 <= jerk <= middle + room + 1e-9
-
-    def _target(self, s, v, kappa, kappa_s, cap):
+    def step(self, scan):
         """
-        Return the largest s'' to aim at in state (s, v), or None if v is too high there.
+        Take one step of ``scan`` from its last state: None, or why it cannot ('speed', 'accel').
 
-        Below the acceleration norm, and such that the normal jerk
-        3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for
-        changing s'' (with s''' = 0 feasible: the tangential part of p''' v**3
-        is -kappa**2 v**3). Negative where the curvature tightens too fast for
-        the speed: the scan then slows down. A back-up lowers it.
+        The step takes the largest jerk within the jerk norm at the state whose
+        end state stays below the acceleration target there (see the comment in
+        the loop), levels off before the speed limit ahead, and is legal at its
+        end (else the largest legal jerk, bisected towards the lowest). The new
+        state is appended to ``scan`` with the table's reading there, which the
+        next step starts from.
         """
-        if v <= 0.0 or v > cap * (1.0 + 1e-9):
-            return None
-        normal = kappa * v * v
-        centripetal = kappa * kappa * v ** 3
-        if normal >= self.accel or centripetal >= self.jerk:
-            return None
-        tangential = math.sqrt(self._accel_squared - normal * normal)
-        target, lowest = tangential, -tangential
-        if kappa * v > 0.0:
-            share = _NORMAL_JERK_SHARE * math.sqrt(self._jerk_squared - centripetal ** 2)
-            target = min(target, (share - kappa_s * v ** 3) / (3.0 * kappa * v))
-            lowest = max(lowest, (-share - kappa_s * v ** 3) / (3.0 * kappa * v))
-        factor = self.factor[min(max(int(s / self._cell), 0), self._last_factor)]
-        target = factor * target if target > 0.0 else target - (1.0 - factor) * self.accel
-        return target if target >= lowest else None
-
-    def step(self, s, v, a):
-        """Take one scan step from state (s, v, a): (h, s, v, a, jerk) or a failure string."""
-        at = self._at
-        kappa, kappa_s, cap = at(s)
-        # _jerk_range, written out: this is the scan's inner loop.
-        v3 = v * v * v
-        normal = kappa_s * v3 + 3.0 * kappa * v * a
-        speed = min(self.speed, cap)
-        if (abs(normal) >= self.jerk or v > speed * (1.0 + 1e-9)
-                or (a < 0.0 and v < _MIN_SCAN_SPEED)):
+        # The scan's inner loop (hundreds of steps per leg): the table is interpolated inline
+        # and every attribute read once, since a Python call, tuple or attribute read costs as
+        # much as the arithmetic itself.
+        sqrt = math.sqrt
+        (cell, last, caps, kappas, kappa_rises, kappa_ss, kappa_s_rises, speed, jerk_limit,
+         accel_limit, jerk_squared, accel_squared) = self._constants
+        reading = scan.reading
+        if reading is None:
+            s, v, a = scan.s[-1], scan.v[-1], scan.a[-1]
+            kappa, kappa_s, cap = self.table.at(s)
+            # The jerk range at (s, v, a): |jerk|**2 = (s''' - kappa**2 v**3)**2
+            # + (kappa_s v**3 + 3 kappa v a)**2, the middle of the range kappa**2 v**3.
+            v3 = v * v * v
+            normal = kappa_s * v3 + 3.0 * kappa * v * a
+            if normal >= jerk_limit or -normal >= jerk_limit:
+                return 'speed'
+            middle, room = kappa * kappa * v3, sqrt(jerk_squared - normal * normal)
+        else:
+            # The previous step read the table at this state (and found its jerk range).
+            s, v, a, kappa, kappa_s, cap, middle, room = reading
+        if cap < speed:
+            speed = cap
+        if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
             return 'speed'
-        room = math.sqrt(self._jerk_squared - normal * normal)
-        lowest, highest = kappa * kappa * v3 - room, kappa * kappa * v3 + room
+        lowest, highest = middle - room, middle + room
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
             # The curvature changes fast here (a needle-sharp bend): shorter steps.
             h = max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
         # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
-        level = _LEVEL_OFF_JERK * max(-lowest, 1e-3 * self.jerk)
+        level = 1e-3 * jerk_limit
+        if -lowest >= level:
+            level = -lowest
+        level *= _LEVEL_OFF_JERK
         # Level off (and cruise) at the lowest speed limit until where the levelling off
         # would end.
-        reach = v * max(a, _LEVEL_REACH * self.accel) / level
-        cap_at = self._cap_at
-        goal = min(speed, cap_at(s + 0.5 * reach), cap_at(s + reach))
+        reach = _LEVEL_REACH * accel_limit
+        if a >= reach:
+            reach = a
+        reach = v * reach / level
+        goal = speed
+        for ahead in (s + 0.5 * reach, s + reach):
+            index = int(ahead / cell)
+            if index < 0:
+                index = 0
+            elif index > last:
+                index = last
+            if caps[index] < goal:
+                goal = caps[index]
+        # Whether the table's reading at the step's end (s_end, v_end, kappa_end, kappa_s_end,
+        # cap_end) is that of the jerk and step chosen.
+        read = False
         if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
             jerk, a = 0.0, 0.0
             # Cruising changes nothing but the place: up to half a table cell per step.
-            h = max(h, 0.5 * self._cell / v)
+            h = max(h, 0.5 * cell / v)
         elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
             jerk, h = self._level_off(v, a, goal, h, level)
         else:
+            factors = self.factor
+            # The factors' last index (they cover the table's points and one beyond).
+            last_factor = len(kappas)
+            normal_share = _NORMAL_JERK_SHARE
+            half_a = a / 2.0
             jerk = highest
             for _ in range(12):
-                s1 = s + h * (v + h * (a / 2.0 + h * jerk / 6.0))
-                v1 = v + h * (a + h * jerk / 2.0)
-                target = self._target(s1, v1, *at(s1))
+                h_jerk = h * jerk
+                s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
+                v_end = v + h * (a + h_jerk / 2.0)
+                x = s_end / cell
+                cell_index = int(x)
+                index = cell_index
+                if index < 0:
+                    index = 0
+                elif index > last:
+                    index = last
+                fraction = x - index
+                kappa_end = kappas[index] + fraction * kappa_rises[index]
+                kappa_s_end = kappa_ss[index] + fraction * kappa_s_rises[index]
+                cap_end = caps[index]
+                # The largest s'' to aim at in the end state (None if v is too high there).
+                # Below the acceleration norm, and such that the normal jerk
+                # 3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for changing
+                # s'' (with s''' = 0 feasible: the tangential part of p''' v**3 is
+                # -kappa**2 v**3). Negative where the curvature tightens too fast for the
+                # speed: the scan then slows down. A back-up lowers it.
+                target = None
+                kappa_v = kappa_end * v_end
+                normal_accel = kappa_v * v_end
+                v_cubed = v_end ** 3
+                centripetal = kappa_end * kappa_end * v_cubed
+                if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
+                        and normal_accel < accel_limit and centripetal < jerk_limit):
+                    target = sqrt(accel_squared - normal_accel * normal_accel)
+                    floor = -target
+                    if kappa_v > 0.0:
+                        share = normal_share * sqrt(jerk_squared - centripetal ** 2)
+                        change = kappa_s_end * v_cubed
+                        divisor = 3.0 * kappa_end * v_end
+                        bound = (share - change) / divisor
+                        if bound < target:
+                            target = bound
+                        bound = (-share - change) / divisor
+                        if bound > floor:
+                            floor = bound
+                    if factors is not None:
+                        factor = factors[0 if cell_index < 0 else last_factor
+                                         if cell_index > last_factor else cell_index]
+                        target = (factor * target if target > 0.0
+                                  else target - (1.0 - factor) * accel_limit)
+                    if not target >= floor:
+                        target = None
                 if target is None:
                     # Too fast at the step's end: try less jerk (down to the lowest).
                     if jerk <= lowest + 1e-9:
                         return 'speed'
                     jerk = 0.5 * (jerk + lowest)
                     continue
-                if a + jerk * h <= target + 1e-12:
+                if a + h_jerk <= target + 1e-12:
+                    read = True
                     break
                 jerk = (target - a) / h
             a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
             if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
+                read = False
                 h = self._until_level_off(v, a, jerk, h, goal, level)
                 if h <= 1e-12:
                     jerk, h = self._level_off(v, a, goal, _SCAN_STEP_SHORT, level)
             elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
                 # s'' passes 0 inside the step: its speed peak must stay below the limit too.
+                read = False
                 jerk, h = self._level_off(v, a, goal, h, level)
-        if jerk >= lowest - 1e-9:
-            if not self._legal(s, v, a, h, jerk):
-                jerk = self._end_feasible(s, v, a, jerk, lowest, h)
-            if jerk is not None:
-                return (h, s + h * (v + h * (a / 2.0 + h * jerk / 6.0)),
-                        v + h * (a + h * jerk / 2.0), a + h * jerk, jerk)
-        # Not accelerating, the speed itself is too high for what follows.
-        return 'accel' if a > 1e-9 else 'speed'
+        if not jerk >= lowest - 1e-9:
+            # Not accelerating, the speed itself is too high for what follows.
+            return 'accel' if a > 1e-9 else 'speed'
+        # The jerk must be legal at the step's end too; if it is not, the largest legal one
+        # in [lowest, jerk] is bisected for (12 halvings).
+        low, high, legal, trial = lowest, jerk, None, jerk
+        for halving in range(13):
+            if not read:
+                s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
+                v_end = v + h * (a + h * trial / 2.0)
+                kappa_end, kappa_s_end, cap_end = self.table.at(s_end)
+            read = False
+            a_end = a + h * trial
+            v3 = v_end * v_end * v_end
+            normal = kappa_s_end * v3 + 3.0 * kappa_end * v_end * a_end
+            if normal < jerk_limit and -normal < jerk_limit:
+                room = sqrt(jerk_squared - normal * normal)
+                middle = kappa_end * kappa_end * v3
+                if middle - room - 1e-9 <= trial <= middle + room + 1e-9:
+                    legal_jerk = trial
+                    legal = s_end, v_end, a_end, kappa_end, kappa_s_end, cap_end, middle, room
+                    if halving == 0:
+                        break
+                    low = trial
+                    trial = 0.5 * (low + high)
+                    continue
+            high = trial
+            trial = 0.5 * (low + high)
+        if legal is None:
+            return 'accel' if a > 1e-9 else 'speed'
+        scan.reading = legal
+        scan.t.append(scan.t[-1] + h)
+        scan.s.append(legal[0])
+        scan.v.append(legal[1])
+        scan.a.append(legal[2])
+        scan.j.append(legal_jerk)
+        return None
 
     def _level_off(self, v, a, speed, h, level):
         """Return (jerk, step): constant jerk bringing s'' to 0 exactly at s' = speed."""
@@ -334,27 +418,16 @@ class _Scanner:
 
     def _until_level_off(self, v, a, jerk, h, speed, level):
         """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
-        low, high = 0.0, h
+        low, high, twice_level = 0.0, h, 2.0 * level
         for _ in range(40):
             x = 0.5 * (low + high)
-            a1 = a + jerk * x
-            if v + x * (a + x * jerk / 2.0) + a1 * a1 / (2.0 * level) > speed:
+            jerk_x = jerk * x
+            a1 = a + jerk_x
+            if v + x * (a + jerk_x / 2.0) + a1 * a1 / twice_level > speed:
                 high = x
             else:
                 low = x
         return low
-
-    def _end_feasible(self, s, v, a, jerk, lowest, h):
-        """Return the largest jerk in [lowest, ``jerk``] legal at the step's end, or None."""
-        legal = self._legal
-        low, high, best = lowest, jerk, None
-        for _ in range(12):
-            middle = 0.5 * (low + high)
-            if legal(s, v, a, h, middle):
-                best, low = middle, middle
-            else:
-                high = middle
-        return best
 
     def advance(self, scan, back_up=True):
         """
@@ -369,29 +442,28 @@ class _Scanner:
         if scan.s[-1] >= scan.end:
             scan.status = 'end'
             return False
-        self.budget.spend()
-        result = self.step(scan.s[-1], scan.v[-1], scan.a[-1])
-        if not isinstance(result, str):
-            h, s1, v1, a1, jerk = result
-            scan.t.append(scan.t[-1] + h)
-            scan.s.append(s1)
-            scan.v.append(v1)
-            scan.a.append(a1)
-            scan.j.append(jerk)
+        budget = self.budget
+        budget.left -= 1
+        if budget.left < 0:
+            raise _NoMotion()
+        failure = self.step(scan)
+        if failure is None:
             return True
-        if result == 'speed' or scan.failures >= _BACK_UP_LIMIT or not back_up:
-            scan.status = result
+        if failure == 'speed' or scan.failures >= _BACK_UP_LIMIT or not back_up:
+            scan.status = failure
             return False
         scan.failures += 1
         last = len(scan.s) - 1
         first = max(0, last - _BACK_UP_STEPS)
         step = self.table.step
-        bins = range(max(int(scan.s[first] / step), 0),
-                     min(int((scan.s[last] + _BACK_UP_AHEAD) / step) + 1, len(self.factor)))
-        lowered = _BACK_UP_FACTOR * min(self.factor[index] for index in bins)
-        for index in bins:
-            self.factor[index] = min(self.factor[index], lowered)
+        if self.factor is None:
+            self.factor = [1.0] * (len(self.table.kappa) + 1)
+        low = max(int(scan.s[first] / step), 0)
+        high = min(int((scan.s[last] + _BACK_UP_AHEAD) / step) + 1, len(self.factor))
+        # A share of the stretch's lowest is below every share in it: all become that.
+        self.factor[low:high] = [_BACK_UP_FACTOR * min(self.factor[low:high])] * (high - low)
         for values in (scan.t, scan.s, scan.v, scan.a):
             del values[first + 1:]
         del scan.j[first:]
+        scan.reading = None
         return True

@@ -130,7 +130,7 @@ class _ArcPlanner:
             lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
             cells = np.repeat(lowest, _CAP_STAIR)
         self.grid = grid
-        table = _ArcTable(self.length, kappa.tolist(), kappa_s.tolist(), cells.tolist())
+        table = _ArcTable(self.length, kappa, kappa_s, cells)
         budget = _StepBudget(_STEP_BUDGET)
         self.forward = _Scanner(table, limits, budget)
         self.backward = _Scanner(table.backwards(), limits, budget)
@@ -412,11 +412,14 @@ class _ArcPlanner:
         while forward.status == 'live' or backward.status == 'live':
             if forward.status == 'live' and (backward.status != 'live'
                                              or forward.v[-1] <= backward.v[-1]):
-                if self.forward.advance(forward):
+                # The speed curves cannot cross before the scans overlap.
+                if (self.forward.advance(forward)
+                        and length - forward.s[-1] < backward.s[-1]):
                     other = backward.speed_at(length - forward.s[-1])
                     if other is not None and forward.v[-1] >= other * (1.0 - 1e-12):
                         break
-            elif self.backward.advance(backward):
+            elif (self.backward.advance(backward)
+                  and length - backward.s[-1] < forward.s[-1]):
                 other = forward.speed_at(length - backward.s[-1])
                 if other is not None and backward.v[-1] >= other * (1.0 - 1e-12):
                     break
