@@ -469,11 +469,12 @@ def test_belt_demo_through_the_node_picks_on_the_object_and_gives_every_outcome(
     # The executed TCP on the object at every pick (JTC's quintic through FK).
     for line in picked:
         assert float(line.split('executed TCP to object ')[1].split()[0]) <= ON_OBJECT * 1e3
-    # Every check passes but, possibly, the executed jerk: through the node it has reached
-    # 1.3-2.3 x max_jerk on some picks (not in the core runs), an open finding (README).
+    # Every check passes, the executed jerk within 1.1 x max_jerk included (it reached
+    # 1.3-2.3 x through the node while the points' times were rounded to whole nanoseconds
+    # with their states kept; see joint_trajectory.on_whole_nanoseconds).
     failed = [line for line in output.splitlines() if line.startswith('failed:')]
-    assert all('TCP jerk within' in line for line in failed), output
-    assert status == (1 if failed else 0), output
+    assert not failed, output
+    assert status == 0, output
 
 
 def test_cli_plot_draws_a_belt_cycle(tmp_path, capsys):
