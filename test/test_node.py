@@ -1045,18 +1045,27 @@ def test_node_takes_the_belt_velocity_from_a_fresh_conveyor_twist(make_harness):
     assert float(values_of(status)['belt.window_position']) >= -0.3 - 1e-6
 
 
-def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
-    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
+def past_belt_pick(harness, before):
+    """
+    Return (settings, a belt pick planned to start ``before`` s ago) on a 0.3 m/s belt.
+
+    Latched far upstream, the plan waits for the object at the start: a start already past
+    at release can be made later by shortening that wait.
+    """
     node = harness.node
     settings = build_settings({name: node.get_parameter(name).value
                                for name in default_values()})
     latch, _ = node_now(harness)
-    # Latched far upstream, planned for a start already past: the plan waits for the object
-    # at the start, and that start has passed at release.
     request = PairRequest(1, np.array([-3.0, 0.0, -0.85]), np.array([0.15, 0.2, -0.8]),
                           time.monotonic(), 'pick_place', latch)
-    planned = node._plan(request, np.array(HOME), 'home_position', settings,
-                         belt_start=latch - 1.0)
+    return settings, node._plan(request, np.array(HOME), 'home_position', settings,
+                                belt_start=latch - before)
+
+
+def test_a_belt_pick_is_started_later_or_replanned_at_release(make_harness):
+    harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
+    node = harness.node
+    settings, planned = past_belt_pick(harness, 1.0)
     wait = planned.details['plan'].intercept.wait
     assert wait > 1.0
     # Its start has passed: started later by as much, its wait shortened, the motion after
@@ -1133,14 +1142,7 @@ def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_h
     # up in between would send a stamp already past (the controller would start mid-motion).
     harness = make_harness({'conveyor_velocity': [0.3, 0.0, 0.0]})
     node = harness.node
-    settings = build_settings({name: node.get_parameter(name).value
-                               for name in default_values()})
-    latch, _ = node_now(harness)
-    request = PairRequest(1, np.array([-3.0, 0.0, -0.85]), np.array([0.15, 0.2, -0.8]),
-                          time.monotonic(), 'pick_place', latch)
-    # Planned for a start already past (its object far upstream: the plan waits for it).
-    late = node._plan(request, np.array(HOME), 'home_position', settings,
-                      belt_start=latch - 0.5)
+    settings, late = past_belt_pick(harness, 0.5)
     sent = []
     node._trajectory_publisher.publish = sent.append
     # A start less than release_lead ahead is not published.
