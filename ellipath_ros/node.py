@@ -707,6 +707,7 @@ class EllipathNode(Node):
         if self._sequencer.stopped:  # shutting down: nothing new is sent to the robot
             self._sequencer.release_failed('stopped')
             return
+        message = motion.details['message']
         belt_start = motion.details.get('belt_start')
         if belt_start is not None:
             try:
@@ -718,11 +719,11 @@ class EllipathNode(Node):
                 self._sequencer.release_failed('stopped')
                 return
             motion, published, start_time = released
+            message = motion.details['message']
             release = self._sequencer.released(motion, published, 'ahead',
                                                settings.controller_period,
                                                settings.release_lead, start=start_time)
         elif settings.header_stamp == 'ahead':
-            message = motion.details['message']
             # The stamp and the node's record of it come from back-to-back clock readings.
             published = time.monotonic()
             now = self.get_clock().now()
@@ -740,7 +741,6 @@ class EllipathNode(Node):
                                start_time + Duration(seconds=last.sec, nanoseconds=last.nanosec))
             self._trajectory_publisher.publish(message)
         else:
-            message = motion.details['message']
             self._trajectory_publisher.publish(message)
             # Read after publishing, so the latest start (this + controller_period) is not
             # underestimated by the time publish() takes.
@@ -754,7 +754,7 @@ class EllipathNode(Node):
                              self._release_values(release, check))
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(
-                motion.details['plan'], settings.frame_id, motion.details['message'].header.stamp))
+                motion.details['plan'], settings.frame_id, message.header.stamp))
 
     def _drop_at_release(self, request, kind, error):
         """Count the pair taken for release as dropped as ``kind`` and say why."""
@@ -782,15 +782,14 @@ class EllipathNode(Node):
             motion = self._checked_belt(motion, settings)
             if self._sequencer.stopped:
                 return None
-            released = self._publish_belt(motion, motion.details['message'],
-                                          settings.release_lead)
+            released = self._publish_belt(motion, settings.release_lead)
             if released is not None:
                 return (motion, *released)
         raise LateReleaseError(
             f'belt start: expected its stamp at least release_lead {settings.release_lead:g} s '
             f'after publication, got it late {BELT_RELEASE_TRIES} times in a row')
 
-    def _publish_belt(self, motion, message, lead):
+    def _publish_belt(self, motion, lead):
         """
         Publish a belt pick stamped at its planned start; return (published, start) clock times.
 
@@ -804,6 +803,7 @@ class EllipathNode(Node):
         start_ns = int(round(belt_start * 1e9))
         if start_ns - now.nanoseconds < lead * 1e9:
             return None
+        message = motion.details['message']
         message.header.stamp = Time(sec=start_ns // 1_000_000_000,
                                     nanosec=start_ns % 1_000_000_000)
         self._trajectory_publisher.publish(message)

@@ -1146,7 +1146,7 @@ def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_h
     sent = []
     node._trajectory_publisher.publish = sent.append
     # A start less than release_lead ahead is not published.
-    assert node._publish_belt(late, late.details['message'], settings.release_lead) is None
+    assert node._publish_belt(late, settings.release_lead) is None
     assert sent == []
     # A check that always hands back a start already past: dropped after the tries, unsent.
     node._checked_belt = lambda motion, settings: late

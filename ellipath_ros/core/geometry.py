@@ -770,28 +770,22 @@ def _transition_distance(ellipse, span, at_t1):
     u, shape = _distance_grid()
     t = math.pi - span * u if at_t1 else span * u
     offset = ellipse.l * span ** 2 * shape
-    # This runs a dozen times per path: the ellipse's formulas (components) written out on
-    # component arrays, only what is used, and the first foot step starts where the bent
-    # curve's samples already are.
-    l_, h, k = ellipse.l, ellipse.h, ellipse.k
-    cos_t, sin_t = np.cos(t), np.sin(t)
-    x, y = l_ * cos_t, h * cos_t + k * sin_t
+    # This runs a dozen times per path: component arrays, and the first foot step starts where
+    # the bent curve's samples already are.
+    (x, y), (slope_x, slope_y), _, _ = ellipse.components(t)
     bent_x = x - offset if at_t1 else x + offset
     bent_y = y
     foot = t
     for step in range(_BLEND_FOOT_STEPS):
         if step:
-            cos_t, sin_t = np.cos(foot), np.sin(foot)
-            x, y = l_ * cos_t, h * cos_t + k * sin_t
-        slope_x, slope_y = -l_ * sin_t, k * cos_t - h * sin_t
+            (x, y), (slope_x, slope_y), _, _ = ellipse.components(foot)
         gap_x, gap_y = x - bent_x, y - bent_y
         # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
         rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
         # np.clip(foot, 0, pi) without its dispatch cost (bounds first, as clip keeps -0.0).
         foot = np.minimum(math.pi, np.maximum(
             0.0, foot - (gap_x * slope_x + gap_y * slope_y) / rate))
-    cos_t, sin_t = np.cos(foot), np.sin(foot)
-    x, y = l_ * cos_t, h * cos_t + k * sin_t
+    (x, y), _, _, _ = ellipse.components(foot)
     distance = np.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
     return float(np.minimum(distance, np.abs(offset)).max())
 
