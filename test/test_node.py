@@ -1157,6 +1157,7 @@ def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_h
     del node._checked_belt
     motion, published, start = node._release_belt(late, settings)
     assert len(sent) == 1
-    stamp = sent[0].header.stamp.sec + sent[0].header.stamp.nanosec * 1e-9
-    assert stamp == pytest.approx(motion.details['belt_start'], abs=1e-9)
-    assert stamp >= node_now(harness)[0]
+    # In whole nanoseconds: a float of seconds since the epoch resolves only ~0.2 us.
+    stamp_ns = sent[0].header.stamp.sec * 1_000_000_000 + sent[0].header.stamp.nanosec
+    assert abs(stamp_ns - motion.details['belt_start'] * 1e9) <= 1e3
+    assert stamp_ns >= node.get_clock().now().nanoseconds
