@@ -31,7 +31,7 @@ setup(
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     python_requires='>=3.10',
-    install_requires=['setuptools', 'numpy', 'ruckig>=0.12'],
+    install_requires=['setuptools', 'numpy', 'numba>=0.59', 'ruckig>=0.12'],
     extras_require={
         'plot': ['matplotlib>=3.5'],
         'bench': ['toppra>=0.6'],

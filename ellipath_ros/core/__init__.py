@@ -15,7 +15,7 @@
 """
 ROS-free planning core: geometry, timing, kinematics and one orchestration function.
 
-NumPy and Ruckig only. The public API is ``__all__`` below; everything else in
+NumPy, numba and Ruckig only. The public API is ``__all__`` below; everything else in
 the submodules (and every name with a leading underscore) may change. Most
 users need two calls::
 
