@@ -92,6 +92,7 @@ from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
+from ellipath_ros.core.compiled import warm_up
 from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
@@ -305,6 +306,7 @@ class EllipathNode(Node):
         self.context.on_shutdown(self._sequencer.stop)
 
         planner = self._settings.planner
+        self.get_logger().info(f'planner kernels compiled or loaded in {warm_up():.2f} s')
         self.get_logger().info(
             f'ready: poses in frame {self._settings.frame_id!r}, pairing '
             f'{self._settings.pairing}, header_stamp {self._settings.header_stamp}, '

@@ -26,7 +26,9 @@ the planned duration that ``time_motion`` returns (after the final check). It al
 bench's cycles (``ellipath bench`` cycle rows, time-optimal profile, planned durations over
 TOPP-RA's bound).
 
-Run it with any checkout's interpreter: the legs depend on the geometry and the pairs only.
+Run it with this checkout's code (the step counter reads the scanners' step budgets); the
+legs depend on the geometry and the pairs only. The kernels are compiled (or loaded from
+numba's cache) before anything is measured.
 ``--save FILE`` writes the figures as JSON (e.g. with main's venv, as the baseline);
 ``--baseline FILE`` compares this run's durations with such a file leg by leg (default:
 ``scripts/data/scan_baseline.json``, main 509a3bb's figures for the default 160 pairs, CPU
@@ -44,7 +46,8 @@ import time
 
 from ellipath_ros.bench.cycle import cycle_rows
 from ellipath_ros.bench.latency import random_pairs
-from ellipath_ros.core import optimal_profile, planner
+from ellipath_ros.core import arc_scan, optimal_profile, planner
+from ellipath_ros.core.compiled import warm_up
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.settings import default_of
@@ -77,27 +80,34 @@ def legs(count):
 
 
 class StepCounter:
-    """Counts the scan's steps (``_Scanner.step`` calls) while the block runs."""
+    """Counts the scan's steps (what the scanners' step budgets spent) while the block runs."""
 
     def __init__(self):
-        self.steps = 0
-        self._step = optimal_profile._Scanner.step
+        # The budgets the scanners were made with: {id: (budget array, steps at the start)}.
+        self._budgets = {}
+        self._init = arc_scan._Scanner.__init__
 
     def __enter__(self):
-        original = self._step
+        original, budgets = self._init, self._budgets
 
-        def counted(scanner, *state):
-            self.steps += 1
-            return original(scanner, *state)
-        optimal_profile._Scanner.step = counted
+        def recorded(scanner, table, cell, limits, budget):
+            original(scanner, table, cell, limits, budget)
+            budgets.setdefault(id(budget), (budget, int(budget[0])))
+        arc_scan._Scanner.__init__ = recorded
         return self
 
     def __exit__(self, *exception):
-        optimal_profile._Scanner.step = self._step
+        arc_scan._Scanner.__init__ = self._init
+
+    @property
+    def steps(self):
+        """Return the steps taken (a budget below 0 ran out: what found it spent took no step)."""
+        return sum(start - max(int(budget[0]), 0) for budget, start in self._budgets.values())
 
 
 def measure_legs(count):
     """Return {label: (CPU s of _optimal_motion, planned duration, scan steps)} per leg."""
+    warm_up()
     figures = {}
     for label, path, cap, config in legs(count):
         started = time.process_time()

@@ -12,13 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The path-space scan's shortcuts give exactly what the plain computations give."""
+"""The path-space scan: its shortcuts and its compiled kernels give what plain code gives."""
 
-from ellipath_ros.core import optimal_profile
-from ellipath_ros.core.arc_scan import _Scan
+import math
+
+from ellipath_ros.core import arc_scan, optimal_profile
+from ellipath_ros.core.arc_scan import _advance, _ADVANCED, _READ, _Scan
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.limits import CartesianLimits
 import numpy as np
+import pytest
+
+# Paths whose legs the equivalence tests plan: the paper's example with each join, a bend
+# with a speed valley, and a low, wide one under a speed cap.
+PATHS = (
+    lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75]),
+    lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75], join='paper'),
+    lambda: plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78]),
+    lambda: plan_path([-0.2, 0.1, -0.85], [0.2, -0.1, -0.85]),
+)
 
 
 def _bisected_time(scan, s_query):
@@ -38,15 +50,17 @@ def _bisected_time(scan, s_query):
 def _constructed_scan(seed):
     """Return a scan of random constant-jerk pieces, states chained exactly as a scan's."""
     rng = np.random.default_rng(seed)
-    scan = _Scan(0.0, 0.5, 0.0, 1.0)
-    for _ in range(40):
+    pieces = 40
+    scan = _Scan(0.0, 0.5, 0.0, 1.0, pieces + 1)
+    t, s, v, a, j = scan.states
+    for index in range(pieces):
         h, jerk = rng.uniform(2e-5, 1e-3), rng.uniform(-2000.0, 2000.0)
-        s, v, a = scan.s[-1], scan.v[-1], scan.a[-1]
-        scan.t.append(scan.t[-1] + h)
-        scan.s.append(s + h * (v + h * (a / 2.0 + h * jerk / 6.0)))
-        scan.v.append(v + h * (a + h * jerk / 2.0))
-        scan.a.append(a + h * jerk)
-        scan.j.append(jerk)
+        t[index + 1] = t[index] + h
+        s[index + 1] = s[index] + h * (v[index] + h * (a[index] / 2.0 + h * jerk / 6.0))
+        v[index + 1] = v[index] + h * (a[index] + h * jerk / 2.0)
+        a[index + 1] = a[index] + h * jerk
+        j[index] = jerk
+    scan.info[arc_scan._COUNT] = pieces + 1
     return scan
 
 
@@ -61,21 +75,81 @@ def test_time_at_is_the_plain_bisection_to_the_last_bit():
 def _forward_scan(path, forget_readings):
     """Return the forward scan of the whole arc from rest speed 0.3 m/s (until it stops)."""
     planner = optimal_profile._ArcPlanner(path, CartesianLimits(), None)
-    scan = _Scan(0.0, 0.3, 0.0, planner.length)
+    scan = planner.forward.scan(0.0, 0.3, 0.0, planner.length)
     while True:
         if forget_readings:
-            scan.reading = None
-        if not planner.forward.advance(scan):
+            scan.info[_READ] = 0
+        if _advance(planner.forward.parts(), scan.parts(), True) != _ADVANCED:
             return scan
 
 
 def test_a_step_starts_from_the_reading_the_table_gives():
     # Each step hands its end state's table reading to the next: the same states result as
     # when every step reads the table afresh.
-    for path in (plan_path([0, 0, -0.8], [0.3, 0, -0.75]),
-                 plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78])):
+    for path in (PATHS[0](), PATHS[2]()):
         carried, fresh = _forward_scan(path, False), _forward_scan(path, True)
-        assert len(carried.s) > 100
+        assert carried.count > 100
         for name in ('t', 's', 'v', 'a', 'j'):
-            assert getattr(carried, name) == getattr(fresh, name)
+            assert getattr(carried, name).tobytes() == getattr(fresh, name).tobytes()
         assert carried.status == fresh.status
+
+
+def _kernels(module):
+    """Return {name: compiled kernel} of ``module``'s own kernels."""
+    return {name: value for name, value in vars(module).items()
+            if hasattr(value, 'py_func') and value.__module__ == module.__name__}
+
+
+def _bits(motion):
+    """Return the exact bytes of a timed motion's pieces, duration and segments."""
+    law = motion.law
+    arrays = (law.times, law.s0, law.v0, law.a0, law.jerk, motion.segment_durations)
+    return b''.join(np.asarray(array).tobytes() for array in arrays), motion.duration
+
+
+@pytest.mark.parametrize('make_path', PATHS)
+def test_compiled_kernels_plan_what_their_plain_python_plans_bit_for_bit(
+        make_path, monkeypatch):
+    # The kernels (numba, nopython) against their plain-Python form (py_func): every kernel
+    # of the scan's modules swapped for its py_func, so the kernels calling kernels run plain
+    # too. Catches an operation numba compiles differently from Python (x**2 as x*x, min/max
+    # with NaN, integer division) and any future numba that does.
+    path = make_path()
+    limits = CartesianLimits()
+    cap = (lambda s: np.full(np.shape(s), 1.5)) if make_path is PATHS[3] else None
+    compiled = optimal_profile._optimal_motion(path, limits, cap)
+    kernels = {**_kernels(arc_scan), **_kernels(optimal_profile)}
+    assert {'_step', '_advance', '_scan_both', '_crossing', '_piece_check'} <= set(kernels)
+    steps = []
+    scanner_init = arc_scan._Scanner.__init__
+
+    def recorded(scanner, table, cell, limits, budget):
+        scanner_init(scanner, table, cell, limits, budget)
+        steps.append((budget, int(budget[0])))
+
+    for module in (arc_scan, optimal_profile):
+        for name in set(kernels) & set(vars(module)):
+            monkeypatch.setattr(module, name, kernels[name].py_func)
+    monkeypatch.setattr(arc_scan._Scanner, '__init__', recorded)
+    plain = optimal_profile._optimal_motion(path, limits, cap)
+    # The scans ran (the fallback would not count steps) and ran plain.
+    assert sum(start - max(int(budget[0]), 0) for budget, start in steps) > 200
+    assert optimal_profile._scan_both is kernels['_scan_both'].py_func
+    assert _bits(plain) == _bits(compiled)
+
+
+def test_piece_check_is_its_plain_form_at_numpys_linspace_points():
+    # The piece check (compiled and plain alike) evaluates the 9 points that
+    # numpy.linspace(0, duration, 9) gives, computed as NumPy computes them.
+    planner = optimal_profile._ArcPlanner(PATHS[0](), CartesianLimits(), None)
+    table, constants = planner.forward.table, planner.forward.constants
+    for duration in (0.0, 1e-3, 3e-3, 7.1e-3, math.pi * 1e-3):
+        for jerk in (-900.0, 400.0):
+            legal, worst = optimal_profile._piece_check(
+                table, constants, 0.05, 0.6, 1.0, duration, jerk)
+            reference = optimal_profile._piece_check.py_func(
+                table, constants, 0.05, 0.6, 1.0, duration, jerk)
+            assert (legal, worst) == reference
+            points = np.linspace(0.0, duration, 9)
+            assert points.tolist() == [
+                duration if point == 8 else point * (duration / 8) + 0.0 for point in range(9)]

@@ -15,18 +15,43 @@
 """
 The path-space scan of the time-optimal profile: one greedy, jerk-limited scan along the arc.
 
-:class:`_Scanner` steps a :class:`_Scan` (states t, s, s', s'' and the jerk of each step)
-forwards from T1 or, on the mirrored :class:`_ArcTable`, backwards from T2, taking the largest
-jerk legal at both ends of each step; :mod:`~ellipath_ros.core.optimal_profile` runs two of
-them, joins them and handles speed valleys, end speeds and the fallback. Every step counts
-against the plan's :class:`_StepBudget`.
+A :class:`_Scanner` steps a :class:`_Scan` (states t, s, s', s'' and the jerk of each step)
+forwards from T1 or, on the mirrored table, backwards from T2, taking the largest jerk legal
+at both ends of each step; :mod:`~ellipath_ros.core.optimal_profile` runs two of them, joins
+them and handles speed valleys, end speeds and the fallback. Every step counts against the
+plan's step budget.
+
+The loops run compiled (:func:`~ellipath_ros.core.compiled.kernel`): a scan is a few NumPy
+arrays, and one kernel call runs it to its stopping condition (hundreds of steps), since a
+Python call per step would cost as much as the step. The kernels do the float operations of
+the plain-Python scan they replaced in the same order, so the plans are the same to the last
+bit; their ``py_func`` is that plain form (test/test_arc_scan.py compares the two).
+
+Layouts (all float64 unless said otherwise):
+
+- table, shape (5, points): rows kappa [1/m], the rise of kappa to the next point, dkappa/ds
+  [1/m**2], its rise, and the speed cap [m/s] of the cell starting at each point, on a
+  uniform grid of ``points`` along the arc (the rises and caps of the last point are never
+  read);
+- constants, shape (_CONSTANTS,): the table's cell length [m], the speed, acceleration and
+  jerk targets [m/s, m/s**2, m/s**3], their squares, the normal jerk share, and 2.0 (see
+  :data:`_TWO`);
+- factor, shape (points + 1,): per cell, the share of the acceleration target the back-ups
+  left (1 until a back-up lowers it);
+- budget, int64 shape (1,): the steps the plan may still take (shared by its two scanners);
+- states, shape (5, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state and the
+  jerk s''' [m/s**3] of the step from each state to the next;
+- info, int64 shape (4,): the number of states, the status, the back-ups so far, whether
+  ``reading`` holds the table's reading at the last state;
+- floats, shape (9,): the arc length at which the scan ends, then the reading (s, s', s'',
+  kappa, dkappa/ds, cap, the middle and half width of the jerk range).
 """
 
-from bisect import bisect_right
 import math
 
 import numpy as np
 
+from .compiled import kernel
 from .limits import _ACCEL_MARGIN, _JERK_MARGIN, _SPEED_MARGIN
 
 # Time step of the path-space scans [s]: the short one where the curvature (1/m) is above
@@ -39,7 +64,8 @@ _SCAN_KAPPA = 8.0
 _SCAN_KAPPA_CHANGE = 0.1
 _SCAN_STEP_MIN = 2e-5
 # Share of the jerk budget the scans give the normal component (3 kappa v a + kappa_s v**3),
-# leaving the rest for changing the tangential acceleration.
+# leaving the rest for changing the tangential acceleration. Handed to the kernels in the
+# constants (read when a scanner is made), so that a study may change it.
 _NORMAL_JERK_SHARE = 0.9
 # Levelling off looks ahead by the distance it takes at least at this share of max_accel.
 _LEVEL_REACH = 0.1
@@ -55,415 +81,579 @@ _BACK_UP_AHEAD = 5e-3
 _BACK_UP_FACTOR = 0.75
 _BACK_UP_LIMIT = 30
 
+# A scan's status (info[_STATUS]): going on, reached its end, too fast for what lies ahead
+# (the other scan covers it), gave up after _BACK_UP_LIMIT back-ups.
+_LIVE, _END, _SPEED, _ACCEL = 0, 1, 2, 3
+_STATUS_NAMES = ('live', 'end', 'speed', 'accel')
+# What :func:`_advance` did: the scan stopped (see its status), took a step (or backed up),
+# or the step budget ran out (the plan gives up on the scans).
+_STOPPED, _ADVANCED, _OUT_OF_STEPS = 0, 1, -1
+# Indices into a scan's info and floats, and into the constants.
+_COUNT, _STATUS, _FAILURES, _READ = 0, 1, 2, 3
+_END_AT, _READING = 0, 1
+_CELL, _SPEED_TARGET, _ACCEL_TARGET, _JERK_TARGET = 0, 1, 2, 3
+_ACCEL_SQUARED, _JERK_SQUARED, _SHARE, _TWO = 4, 5, 6, 7
+_CONSTANTS = 8
+
 
 class _NoMotion(Exception):
     """The scans found no motion for a stretch (the caller tries something slower)."""
 
 
-class _StepBudget:
-    """The scan steps a plan may still take (shared by its two scanners)."""
+def _arc_table(kappa, kappa_s, cap):
+    """
+    Return the table (see the module's layouts) of kappa, dkappa/ds and the cell caps.
 
-    __slots__ = ('left',)
+    Parameters
+    ----------
+    kappa, kappa_s : numpy.ndarray, shape (points,)
+        Curvature [1/m] and its derivative along the arc [1/m**2] on a uniform grid.
+    cap : numpy.ndarray, shape (points - 1,)
+        Speed cap [m/s] of each cell.
 
-    def __init__(self, steps):
-        # Spent by _Scanner.advance, which raises _NoMotion once it is below 0.
-        self.left = steps
-
-
-class _ArcTable:
-    """Curvature kappa and dkappa/ds on a uniform grid along the arc, the speed cap per cell."""
-
-    __slots__ = ('length', 'step', 'last', 'arrays', 'kappa', 'kappa_s', 'cap', 'kappa_rise',
-                 'kappa_s_rise', 'at')
-
-    def __init__(self, length, kappa, kappa_s, cap):
-        """Build the table from NumPy arrays of equal length (grid points; cap per cell)."""
-        self.length = length
-        self.step = length / (len(kappa) - 1)
-        self.last = len(kappa) - 2
-        self.arrays = kappa, kappa_s, cap
-        # Lists, not arrays: the scans read single values, which lists serve faster. Each
-        # cell's rise too, so that interpolating reads one value less.
-        self.kappa, self.kappa_s, self.cap = kappa.tolist(), kappa_s.tolist(), cap.tolist()
-        self.kappa_rise, self.kappa_s_rise = np.diff(kappa).tolist(), np.diff(kappa_s).tolist()
-        self.at = _lookup(self)
-
-    def backwards(self):
-        """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
-        kappa, kappa_s, cap = self.arrays
-        return _ArcTable(self.length, kappa[::-1], -kappa_s[::-1], cap[::-1])
+    """
+    table = np.zeros((5, kappa.size))
+    table[0], table[2] = kappa, kappa_s
+    table[1, :-1], table[3, :-1], table[4, :-1] = np.diff(kappa), np.diff(kappa_s), cap
+    return table
 
 
-def _lookup(table):
-    """Return at(s) -> (kappa, dkappa/ds, speed cap) at arc length s, read from ``table``."""
-    step, last, cap = table.step, table.last, table.cap
-    kappa, kappa_rise, kappa_s, kappa_s_rise = (
-        table.kappa, table.kappa_rise, table.kappa_s, table.kappa_s_rise)
+def _backwards(table):
+    """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
+    kappa, kappa_s, cap = table[0, ::-1], -table[2, ::-1], table[4, -2::-1]
+    return _arc_table(kappa, kappa_s, cap)
 
-    # A closure over plain lists, local names being the cheapest reads Python has: the scan
-    # steps read the table through it where they do not interpolate inline.
-    def at(s):
-        x = s / step
-        index = int(x)
-        if index < 0:
-            index = 0
-        elif index > last:
-            index = last
-        fraction = x - index
-        return (kappa[index] + fraction * kappa_rise[index],
-                kappa_s[index] + fraction * kappa_s_rise[index], cap[index])
-    return at
+
+class _Scanner:
+    """
+    The arc table, limits and back-up shares with which scans run along one direction.
+
+    ``cell`` is the table's grid step [m]; ``budget`` is the step budget
+    (int64 array of one value) shared with the plan's other scanner.
+    """
+
+    __slots__ = ('table', 'constants', 'factor', 'budget')
+
+    def __init__(self, table, cell, limits, budget):
+        self.table = table
+        self.budget = budget
+        speed = limits.max_speed * _SPEED_MARGIN
+        accel = limits.max_accel * _ACCEL_MARGIN
+        jerk = limits.max_jerk * _JERK_MARGIN
+        self.constants = np.array(
+            [cell, speed, accel, jerk, accel ** 2, jerk ** 2, _NORMAL_JERK_SHARE, 2.0])
+        self.factor = np.ones(table.shape[1] + 1)
+
+    @property
+    def cell(self):
+        """Return the length [m] of one table cell."""
+        return float(self.constants[_CELL])
+
+    def parts(self):
+        """Return the scanner as the kernels take it: (table, constants, factor, budget)."""
+        return self.table, self.constants, self.factor, self.budget
+
+    def scan(self, s, v, a, end):
+        """Return a new scan from (s, s', s'') to ``end``, with room for the budget's steps."""
+        return _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+
+    def run(self, scan):
+        """Advance ``scan`` until it stops; raise :class:`_NoMotion` if the budget runs out."""
+        if _run(self.parts(), scan.parts()) == _OUT_OF_STEPS:
+            raise _NoMotion()
 
 
 class _Scan:
     """
     States (t, s, s', s'') of a greedy scan along the arc and the jerk of each step.
 
-    ``t``, ``s``, ``v``, ``a`` have one entry per state, ``j`` one per step.
-    ``status`` is 'live', 'end' (reached ``end``), 'speed' (the speed became
-    too high for what lies ahead: the other scan covers it) or 'accel' (gave
-    up after ``failures`` back-ups).
+    ``t``, ``s``, ``v``, ``a`` have one entry per state, ``j`` one per step
+    (views of the arrays the kernels fill). ``status`` is 'live', 'end'
+    (reached ``end``), 'speed' (the speed became too high for what lies
+    ahead: the other scan covers it) or 'accel' (gave up after
+    ``_BACK_UP_LIMIT`` back-ups).
     """
 
-    __slots__ = ('t', 's', 'v', 'a', 'j', 'end', 'status', 'failures', 'reading')
+    __slots__ = ('states', 'info', 'floats')
 
-    def __init__(self, s, v, a, end):
-        self.t, self.s, self.v, self.a, self.j = [0.0], [s], [v], [a], []
-        self.end, self.status, self.failures = end, 'live', 0
-        # The table read at the last state by the step that reached it (see _Scanner.step).
-        self.reading = None
+    def __init__(self, s, v, a, end, capacity):
+        self.states = np.empty((5, capacity))
+        self.states[:4, 0] = 0.0, s, v, a
+        self.info = np.zeros(4, dtype=np.int64)
+        self.info[_COUNT] = 1
+        self.floats = np.zeros(9)
+        self.floats[_END_AT] = end
+
+    def parts(self):
+        """Return the scan as the kernels take it: (states, info, floats)."""
+        return self.states, self.info, self.floats
+
+    @property
+    def count(self):
+        """Return the number of states."""
+        return int(self.info[_COUNT])
+
+    @property
+    def status(self):
+        """Return why the scan stopped, or 'live'."""
+        return _STATUS_NAMES[self.info[_STATUS]]
+
+    t = property(lambda self: self.states[0, :self.count], doc='Time of each state [s].')
+    s = property(lambda self: self.states[1, :self.count], doc='Arc length [m].')
+    v = property(lambda self: self.states[2, :self.count], doc="Speed s' [m/s].")
+    a = property(lambda self: self.states[3, :self.count], doc="s'' [m/s**2].")
+    j = property(lambda self: self.states[4, :self.count - 1], doc='Jerk of each step.')
+
+    def last(self):
+        """Return the last state (t, s, s', s'') as floats."""
+        return tuple(self.states[:4, self.count - 1].tolist())
 
     def speed_at(self, s_query):
         """Return s' at ``s_query`` interpolated between states, or None outside the scan."""
-        position = bisect_right(self.s, s_query)
-        if position == 0 or position >= len(self.s):
-            return None
-        low, high = self.s[position - 1], self.s[position]
-        x = (s_query - low) / (high - low) if high > low else 0.0
-        return self.v[position - 1] + x * (self.v[position] - self.v[position - 1])
+        found, speed = _speed_at(self.states, self.count, s_query)
+        return speed if found else None
 
     def state(self, time):
         """Return (s, s', s'') at ``time`` (clamped to the scan)."""
-        index = min(max(bisect_right(self.t, time) - 1, 0), max(len(self.j) - 1, 0))
-        if not self.j:
-            return self.s[0], self.v[0], self.a[0]
-        x = time - self.t[index]
-        v, a, j = self.v[index], self.a[index], self.j[index]
-        return (self.s[index] + x * (v + x * (a / 2.0 + x * j / 6.0)),
-                v + x * (a + x * j / 2.0), a + x * j)
+        return _state(self.states, self.count, time)
 
     def time_at(self, s_query):
         """Return the time at which the scan reaches ``s_query`` (within its range)."""
-        t, s, v, a, j = self.t, self.s, self.v, self.a, self.j
-        if not j:
-            return t[0]
-        last = len(j) - 1
-        index = min(max(bisect_right(s, s_query) - 1, 0), last)
-        low, high = t[index], t[min(index + 1, len(t) - 1)]
-        # Bisection on the position, each piece evaluated as :meth:`state` does (same piece,
-        # same arithmetic); it stops once the middle no longer moves.
-        middle = 0.5 * (low + high)
-        for _ in range(60):
-            piece = min(max(bisect_right(t, middle) - 1, 0), last)
-            x = middle - t[piece]
-            if s[piece] + x * (v[piece] + x * (a[piece] / 2.0 + x * j[piece] / 6.0)) < s_query:
-                low = middle
-            else:
-                high = middle
-            previous, middle = middle, 0.5 * (low + high)
-            if middle == previous:
-                break
-        return middle
+        return _time_at(self.states, self.count, s_query)
 
     def rows(self, time):
-        """Return the pieces from the start to ``time``."""
-        rows = []
-        for index, jerk in enumerate(self.j):
-            if self.t[index] >= time:
-                break
-            rows.append((min(self.t[index + 1], time) - self.t[index], self.s[index],
-                         self.v[index], self.a[index], jerk))
-        return rows
+        """Return the pieces (duration, s, s', s'', s''') from the start to ``time``."""
+        return _rows(self.states, self.count, time).tolist()
 
     def reversed_rows(self, time, length):
         """Return the forward-time pieces of a backward scan from ``time`` back to its start."""
-        rows = []
-        index = min(max(bisect_right(self.t, time) - 1, 0), len(self.j) - 1)
-        s, v, a = self.state(time)
-        if time > self.t[index]:
-            rows.append((time - self.t[index], length - s, v, -a, self.j[index]))
-        for index in range(index - 1, -1, -1):
-            rows.append((self.t[index + 1] - self.t[index], length - self.s[index + 1],
-                         self.v[index + 1], -self.a[index + 1], self.j[index]))
-        return rows
+        return _reversed_rows(self.states, self.count, time, length).tolist()
 
 
-class _Scanner:
-    """The greedy path-space scan along one direction of the arc (see :func:`time_motion`)."""
+# -- the kernels ------------------------------------------------------------------------------
 
-    def __init__(self, table, limits, budget):
-        self.table = table
-        self.budget = budget
-        self.speed = limits.max_speed * _SPEED_MARGIN
-        self.accel = limits.max_accel * _ACCEL_MARGIN
-        self.jerk = limits.max_jerk * _JERK_MARGIN
-        # Per table cell, the share of the acceleration target left by back-ups; None until
-        # the first (every share 1, which changes no target).
-        self.factor = None
-        self._jerk_squared = self.jerk ** 2
-        self._accel_squared = self.accel ** 2
-        # What every step reads, in one tuple (one attribute read instead of a dozen).
-        self._constants = (
-            table.step, table.last, table.cap, table.kappa, table.kappa_rise, table.kappa_s,
-            table.kappa_s_rise, self.speed, self.jerk, self.accel, self._jerk_squared,
-            self._accel_squared)
+@kernel
+def _py_max(first, second):
+    """
+    Return Python's ``max(first, second)`` of two floats: the first unless the second is greater.
 
-    def jerk_range(self, s, v, a):
-        """Return the (lowest, highest) s''' keeping |jerk| <= limit at (s, v, a), or None."""
-        kappa, kappa_s, _ = self.table.at(s)
-        # |jerk|**2 = (s''' - kappa**2 v**3)**2 + (kappa_s v**3 + 3 kappa v a)**2.
+    Its choice with NaN and signed zeros, which the compiled builtin need not share.
+    """
+    return second if second > first else first
+
+
+@kernel
+def _py_min(first, second):
+    """
+    Return Python's ``min(first, second)`` of two floats: the first unless the second is less.
+
+    See :func:`_py_max`.
+    """
+    return second if second < first else first
+
+
+@kernel
+def _bisect_right(values, count, x):
+    """Return ``bisect.bisect_right(values[:count], x)`` (values ascending)."""
+    low, high = 0, count
+    while low < high:
+        middle = (low + high) // 2
+        if x < values[middle]:
+            high = middle
+        else:
+            low = middle + 1
+    return low
+
+
+@kernel
+def _table_at(table, cell, s):
+    """
+    Return (kappa [1/m], dkappa/ds [1/m**2], speed cap [m/s]) at arc length ``s`` [m].
+
+    Interpolated linearly within the cell (extrapolated past the ends); ``cell`` is
+    the grid step [m].
+    """
+    x = s / cell
+    index = int(x)
+    last = table.shape[1] - 2
+    if index < 0:
+        index = 0
+    elif index > last:
+        index = last
+    fraction = x - index
+    return (table[0, index] + fraction * table[1, index],
+            table[2, index] + fraction * table[3, index], table[4, index])
+
+
+@kernel
+def _jerk_range(table, constants, s, v, a):
+    """
+    Return (found, lowest, highest): the s''' range keeping |jerk| <= target at (s, v, a).
+
+    |jerk|**2 = (s''' - kappa**2 v**3)**2 + (kappa_s v**3 + 3 kappa v a)**2; ``found``
+    is False (and the range 0) where the normal part alone exceeds the target.
+    """
+    kappa, kappa_s, _ = _table_at(table, constants[_CELL], s)
+    v3 = v * v * v
+    normal = kappa_s * v3 + 3.0 * kappa * v * a
+    if abs(normal) >= constants[_JERK_TARGET]:
+        return False, 0.0, 0.0
+    room = math.sqrt(constants[_JERK_SQUARED] - normal * normal)
+    return True, kappa * kappa * v3 - room, kappa * kappa * v3 + room
+
+
+@kernel
+def _level_off(v, a, speed, h, level, jerk_limit):
+    """Return (jerk, step): constant jerk bringing s'' to 0 exactly at s' = ``speed``."""
+    gap = speed - v
+    jerk = -level if gap <= 0.0 else _py_max(-a * a / (2.0 * gap), -jerk_limit)
+    return jerk, _py_min(h, a / -jerk)
+
+
+@kernel
+def _until_level_off(v, a, jerk, h, speed, level):
+    """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
+    low, high, twice_level = 0.0, h, 2.0 * level
+    for _ in range(40):
+        x = 0.5 * (low + high)
+        jerk_x = jerk * x
+        a1 = a + jerk_x
+        if v + x * (a + jerk_x / 2.0) + a1 * a1 / twice_level > speed:
+            high = x
+        else:
+            low = x
+    return low
+
+
+@kernel
+def _step(table, constants, factors, states, info, floats):
+    """
+    Take one step of the scan from its last state: 0, or why it cannot (_SPEED, _ACCEL).
+
+    The step takes the largest jerk within the jerk norm at the state whose
+    end state stays below the acceleration target there (see the comment in
+    the loop), levels off before the speed limit ahead, and is legal at its
+    end (else the largest legal jerk, bisected towards the lowest). The new
+    state is appended with the table's reading there, which the next step
+    starts from.
+    """
+    cell, speed = constants[_CELL], constants[_SPEED_TARGET]
+    accel_limit, jerk_limit = constants[_ACCEL_TARGET], constants[_JERK_TARGET]
+    accel_squared, jerk_squared = constants[_ACCEL_SQUARED], constants[_JERK_SQUARED]
+    last = table.shape[1] - 2
+    # The factors' last index (they cover the table's points and one beyond).
+    last_factor = table.shape[1]
+    count = info[_COUNT]
+    if info[_READ] == 0:
+        s, v, a = states[1, count - 1], states[2, count - 1], states[3, count - 1]
+        kappa, kappa_s, cap = _table_at(table, cell, s)
+        # The jerk range at (s, v, a): |jerk|**2 = (s''' - kappa**2 v**3)**2
+        # + (kappa_s v**3 + 3 kappa v a)**2, the middle of the range kappa**2 v**3.
         v3 = v * v * v
         normal = kappa_s * v3 + 3.0 * kappa * v * a
-        if abs(normal) >= self.jerk:
-            return None
-        room = math.sqrt(self._jerk_squared - normal * normal)
-        return kappa * kappa * v3 - room, kappa * kappa * v3 + room
-
-    def step(self, scan):
-        """
-        Take one step of ``scan`` from its last state: None, or why it cannot ('speed', 'accel').
-
-        The step takes the largest jerk within the jerk norm at the state whose
-        end state stays below the acceleration target there (see the comment in
-        the loop), levels off before the speed limit ahead, and is legal at its
-        end (else the largest legal jerk, bisected towards the lowest). The new
-        state is appended to ``scan`` with the table's reading there, which the
-        next step starts from.
-        """
-        # The scan's inner loop (hundreds of steps per leg): the table is interpolated inline
-        # and every attribute read once, since a Python call, tuple or attribute read costs as
-        # much as the arithmetic itself.
-        sqrt = math.sqrt
-        (cell, last, caps, kappas, kappa_rises, kappa_ss, kappa_s_rises, speed, jerk_limit,
-         accel_limit, jerk_squared, accel_squared) = self._constants
-        reading = scan.reading
-        if reading is None:
-            s, v, a = scan.s[-1], scan.v[-1], scan.a[-1]
-            kappa, kappa_s, cap = self.table.at(s)
-            # The jerk range at (s, v, a): |jerk|**2 = (s''' - kappa**2 v**3)**2
-            # + (kappa_s v**3 + 3 kappa v a)**2, the middle of the range kappa**2 v**3.
-            v3 = v * v * v
-            normal = kappa_s * v3 + 3.0 * kappa * v * a
-            if normal >= jerk_limit or -normal >= jerk_limit:
-                return 'speed'
-            middle, room = kappa * kappa * v3, sqrt(jerk_squared - normal * normal)
-        else:
-            # The previous step read the table at this state (and found its jerk range).
-            s, v, a, kappa, kappa_s, cap, middle, room = reading
-        if cap < speed:
-            speed = cap
-        if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
-            return 'speed'
-        lowest, highest = middle - room, middle + room
-        h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
-        if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
-            # The curvature changes fast here (a needle-sharp bend): shorter steps.
-            h = max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
-        # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
-        level = 1e-3 * jerk_limit
-        if -lowest >= level:
-            level = -lowest
-        level *= _LEVEL_OFF_JERK
-        # Level off (and cruise) at the lowest speed limit until where the levelling off
-        # would end.
-        reach = _LEVEL_REACH * accel_limit
-        if a >= reach:
-            reach = a
-        reach = v * reach / level
-        goal = speed
-        for ahead in (s + 0.5 * reach, s + reach):
-            index = int(ahead / cell)
+        if normal >= jerk_limit or -normal >= jerk_limit:
+            return _SPEED
+        middle, room = kappa * kappa * v3, math.sqrt(jerk_squared - normal * normal)
+    else:
+        # The previous step read the table at this state (and found its jerk range).
+        s, v, a = floats[_READING], floats[_READING + 1], floats[_READING + 2]
+        kappa, kappa_s, cap = floats[_READING + 3], floats[_READING + 4], floats[_READING + 5]
+        middle, room = floats[_READING + 6], floats[_READING + 7]
+    if cap < speed:
+        speed = cap
+    if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
+        return _SPEED
+    lowest, highest = middle - room, middle + room
+    h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
+    if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
+        # The curvature changes fast here (a needle-sharp bend): shorter steps.
+        h = _py_max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
+    # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
+    level = 1e-3 * jerk_limit
+    if -lowest >= level:
+        level = -lowest
+    level *= _LEVEL_OFF_JERK
+    # Level off (and cruise) at the lowest speed limit until where the levelling off
+    # would end.
+    reach = _LEVEL_REACH * accel_limit
+    if a >= reach:
+        reach = a
+    reach = v * reach / level
+    goal = speed
+    for ahead in (s + 0.5 * reach, s + reach):
+        index = int(ahead / cell)
+        if index < 0:
+            index = 0
+        elif index > last:
+            index = last
+        if table[4, index] < goal:
+            goal = table[4, index]
+    # Whether the table's reading at the step's end (s_end, v_end, kappa_end, kappa_s_end,
+    # cap_end) is that of the jerk and step chosen.
+    read = False
+    s_end = v_end = kappa_end = kappa_s_end = cap_end = 0.0
+    if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
+        jerk, a = 0.0, 0.0
+        # Cruising changes nothing but the place: up to half a table cell per step.
+        h = _py_max(h, 0.5 * cell / v)
+    elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
+        jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
+    else:
+        normal_share = constants[_SHARE]
+        half_a = a / 2.0
+        jerk = highest
+        for _ in range(12):
+            h_jerk = h * jerk
+            s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
+            v_end = v + h * (a + h_jerk / 2.0)
+            x = s_end / cell
+            cell_index = int(x)
+            index = cell_index
             if index < 0:
                 index = 0
             elif index > last:
                 index = last
-            if caps[index] < goal:
-                goal = caps[index]
-        # Whether the table's reading at the step's end (s_end, v_end, kappa_end, kappa_s_end,
-        # cap_end) is that of the jerk and step chosen.
-        read = False
-        if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
-            jerk, a = 0.0, 0.0
-            # Cruising changes nothing but the place: up to half a table cell per step.
-            h = max(h, 0.5 * cell / v)
-        elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
-            jerk, h = self._level_off(v, a, goal, h, level)
-        else:
-            factors = self.factor
-            # The factors' last index (they cover the table's points and one beyond).
-            last_factor = len(kappas)
-            normal_share = _NORMAL_JERK_SHARE
-            half_a = a / 2.0
-            jerk = highest
-            for _ in range(12):
-                h_jerk = h * jerk
-                s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
-                v_end = v + h * (a + h_jerk / 2.0)
-                x = s_end / cell
-                cell_index = int(x)
-                index = cell_index
-                if index < 0:
-                    index = 0
-                elif index > last:
-                    index = last
-                fraction = x - index
-                kappa_end = kappas[index] + fraction * kappa_rises[index]
-                kappa_s_end = kappa_ss[index] + fraction * kappa_s_rises[index]
-                cap_end = caps[index]
-                # The largest s'' to aim at in the end state (None if v is too high there).
-                # Below the acceleration norm, and such that the normal jerk
-                # 3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for changing
-                # s'' (with s''' = 0 feasible: the tangential part of p''' v**3 is
-                # -kappa**2 v**3). Negative where the curvature tightens too fast for the
-                # speed: the scan then slows down. A back-up lowers it.
-                target = None
-                kappa_v = kappa_end * v_end
-                normal_accel = kappa_v * v_end
-                v_cubed = v_end ** 3
-                centripetal = kappa_end * kappa_end * v_cubed
-                if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
-                        and normal_accel < accel_limit and centripetal < jerk_limit):
-                    target = sqrt(accel_squared - normal_accel * normal_accel)
-                    floor = -target
-                    if kappa_v > 0.0:
-                        share = normal_share * sqrt(jerk_squared - centripetal ** 2)
-                        change = kappa_s_end * v_cubed
-                        divisor = 3.0 * kappa_end * v_end
-                        bound = (share - change) / divisor
-                        if bound < target:
-                            target = bound
-                        bound = (-share - change) / divisor
-                        if bound > floor:
-                            floor = bound
-                    if factors is not None:
-                        factor = factors[0 if cell_index < 0 else last_factor
-                                         if cell_index > last_factor else cell_index]
-                        target = (factor * target if target > 0.0
-                                  else target - (1.0 - factor) * accel_limit)
-                    if not target >= floor:
-                        target = None
-                if target is None:
-                    # Too fast at the step's end: try less jerk (down to the lowest).
-                    if jerk <= lowest + 1e-9:
-                        return 'speed'
-                    jerk = 0.5 * (jerk + lowest)
-                    continue
-                if a + h_jerk <= target + 1e-12:
-                    read = True
-                    break
-                jerk = (target - a) / h
-            a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
-            if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
-                read = False
-                h = self._until_level_off(v, a, jerk, h, goal, level)
-                if h <= 1e-12:
-                    jerk, h = self._level_off(v, a, goal, _SCAN_STEP_SHORT, level)
-            elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
-                # s'' passes 0 inside the step: its speed peak must stay below the limit too.
-                read = False
-                jerk, h = self._level_off(v, a, goal, h, level)
-        if not jerk >= lowest - 1e-9:
-            # Not accelerating, the speed itself is too high for what follows.
-            return 'accel' if a > 1e-9 else 'speed'
-        # The jerk must be legal at the step's end too; if it is not, the largest legal one
-        # in [lowest, jerk] is bisected for (12 halvings).
-        low, high, legal, trial = lowest, jerk, None, jerk
-        for halving in range(13):
-            if not read:
-                s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
-                v_end = v + h * (a + h * trial / 2.0)
-                kappa_end, kappa_s_end, cap_end = self.table.at(s_end)
+            fraction = x - index
+            kappa_end = table[0, index] + fraction * table[1, index]
+            kappa_s_end = table[2, index] + fraction * table[3, index]
+            cap_end = table[4, index]
+            # The largest s'' to aim at in the end state (none if v is too high there).
+            # Below the acceleration norm, and such that the normal jerk
+            # 3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for changing
+            # s'' (with s''' = 0 feasible: the tangential part of p''' v**3 is
+            # -kappa**2 v**3). Negative where the curvature tightens too fast for the
+            # speed: the scan then slows down. A back-up lowers it (factors of 1 change
+            # no target: 1.0 * target and target - 0.0 * accel_limit are target).
+            has_target = False
+            target = 0.0
+            kappa_v = kappa_end * v_end
+            normal_accel = kappa_v * v_end
+            # math.pow, the C library's pow that Python's ** calls (not v * v * v, which
+            # rounds differently).
+            v_cubed = math.pow(v_end, 3.0)
+            centripetal = kappa_end * kappa_end * v_cubed
+            if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
+                    and normal_accel < accel_limit and centripetal < jerk_limit):
+                target = math.sqrt(accel_squared - normal_accel * normal_accel)
+                floor = -target
+                if kappa_v > 0.0:
+                    share = normal_share * math.sqrt(
+                        jerk_squared - math.pow(centripetal, constants[_TWO]))
+                    change = kappa_s_end * v_cubed
+                    divisor = 3.0 * kappa_end * v_end
+                    bound = (share - change) / divisor
+                    if bound < target:
+                        target = bound
+                    bound = (-share - change) / divisor
+                    if bound > floor:
+                        floor = bound
+                factor = factors[0 if cell_index < 0 else last_factor
+                                 if cell_index > last_factor else cell_index]
+                target = (factor * target if target > 0.0
+                          else target - (1.0 - factor) * accel_limit)
+                has_target = target >= floor
+            if not has_target:
+                # Too fast at the step's end: try less jerk (down to the lowest).
+                if jerk <= lowest + 1e-9:
+                    return _SPEED
+                jerk = 0.5 * (jerk + lowest)
+                continue
+            if a + h_jerk <= target + 1e-12:
+                read = True
+                break
+            jerk = (target - a) / h
+        a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
+        if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
             read = False
-            a_end = a + h * trial
-            v3 = v_end * v_end * v_end
-            normal = kappa_s_end * v3 + 3.0 * kappa_end * v_end * a_end
-            if normal < jerk_limit and -normal < jerk_limit:
-                room = sqrt(jerk_squared - normal * normal)
-                middle = kappa_end * kappa_end * v3
-                if middle - room - 1e-9 <= trial <= middle + room + 1e-9:
-                    legal_jerk = trial
-                    legal = s_end, v_end, a_end, kappa_end, kappa_s_end, cap_end, middle, room
-                    if halving == 0:
-                        break
-                    low = trial
-                    trial = 0.5 * (low + high)
-                    continue
-            high = trial
-            trial = 0.5 * (low + high)
-        if legal is None:
-            return 'accel' if a > 1e-9 else 'speed'
-        scan.reading = legal
-        scan.t.append(scan.t[-1] + h)
-        scan.s.append(legal[0])
-        scan.v.append(legal[1])
-        scan.a.append(legal[2])
-        scan.j.append(legal_jerk)
-        return None
+            h = _until_level_off(v, a, jerk, h, goal, level)
+            if h <= 1e-12:
+                jerk, h = _level_off(v, a, goal, _SCAN_STEP_SHORT, level, jerk_limit)
+        elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
+            # s'' passes 0 inside the step: its speed peak must stay below the limit too.
+            read = False
+            jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
+    if not jerk >= lowest - 1e-9:
+        # Not accelerating, the speed itself is too high for what follows.
+        return _ACCEL if a > 1e-9 else _SPEED
+    # The jerk must be legal at the step's end too; if it is not, the largest legal one
+    # in [lowest, jerk] is bisected for (12 halvings).
+    low, high, legal, trial = lowest, jerk, False, jerk
+    legal_jerk = 0.0
+    for halving in range(13):
+        if not read:
+            s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
+            v_end = v + h * (a + h * trial / 2.0)
+            kappa_end, kappa_s_end, cap_end = _table_at(table, cell, s_end)
+        read = False
+        a_end = a + h * trial
+        v3 = v_end * v_end * v_end
+        normal = kappa_s_end * v3 + 3.0 * kappa_end * v_end * a_end
+        if normal < jerk_limit and -normal < jerk_limit:
+            room_end = math.sqrt(jerk_squared - normal * normal)
+            middle_end = kappa_end * kappa_end * v3
+            if middle_end - room_end - 1e-9 <= trial <= middle_end + room_end + 1e-9:
+                legal, legal_jerk = True, trial
+                floats[_READING], floats[_READING + 1] = s_end, v_end
+                floats[_READING + 2], floats[_READING + 3] = a_end, kappa_end
+                floats[_READING + 4], floats[_READING + 5] = kappa_s_end, cap_end
+                floats[_READING + 6], floats[_READING + 7] = middle_end, room_end
+                if halving == 0:
+                    break
+                low = trial
+                trial = 0.5 * (low + high)
+                continue
+        high = trial
+        trial = 0.5 * (low + high)
+    if not legal:
+        return _ACCEL if a > 1e-9 else _SPEED
+    states[0, count] = states[0, count - 1] + h
+    states[1, count], states[2, count], states[3, count] = (
+        floats[_READING], floats[_READING + 1], floats[_READING + 2])
+    states[4, count - 1] = legal_jerk
+    info[_COUNT] = count + 1
+    info[_READ] = 1
+    return 0
 
-    def _level_off(self, v, a, speed, h, level):
-        """Return (jerk, step): constant jerk bringing s'' to 0 exactly at s' = speed."""
-        gap = speed - v
-        jerk = -level if gap <= 0.0 else max(-a * a / (2.0 * gap), -self.jerk)
-        return jerk, min(h, a / -jerk)
 
-    def _until_level_off(self, v, a, jerk, h, speed, level):
-        """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
-        low, high, twice_level = 0.0, h, 2.0 * level
-        for _ in range(40):
-            x = 0.5 * (low + high)
-            jerk_x = jerk * x
-            a1 = a + jerk_x
-            if v + x * (a + jerk_x / 2.0) + a1 * a1 / twice_level > speed:
-                high = x
-            else:
-                low = x
-        return low
+@kernel
+def _advance(scanner, scan, back_up):
+    """
+    Take one step of ``scan``: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
 
-    def advance(self, scan, back_up=True):
-        """
-        Take one step of ``scan``; return False once it cannot go on (see its status).
+    Where the acceleration bound falls faster than the jerk can follow, the
+    scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target over
+    the stretch (lower again on repeated trouble), unless ``back_up`` is False.
+    """
+    table, constants, factor, budget = scanner
+    states, info, floats = scan
+    if info[_STATUS] != _LIVE:
+        return _STOPPED
+    count = info[_COUNT]
+    if states[1, count - 1] >= floats[_END_AT]:
+        info[_STATUS] = _END
+        return _STOPPED
+    budget[0] -= 1
+    # A scan holds at most the budget's steps (see _Scanner.scan): the capacity test only
+    # guards the arrays.
+    if budget[0] < 0 or count >= states.shape[1]:
+        return _OUT_OF_STEPS
+    failure = _step(table, constants, factor, states, info, floats)
+    if failure == 0:
+        return _ADVANCED
+    if failure == _SPEED or info[_FAILURES] >= _BACK_UP_LIMIT or not back_up:
+        info[_STATUS] = failure
+        return _STOPPED
+    info[_FAILURES] += 1
+    last = count - 1
+    first = max(0, last - _BACK_UP_STEPS)
+    cell = constants[_CELL]
+    low = max(int(states[1, first] / cell), 0)
+    high = min(int((states[1, last] + _BACK_UP_AHEAD) / cell) + 1, factor.size)
+    # A share of the stretch's lowest is below every share in it: all become that.
+    lowest = factor[low]
+    for index in range(low + 1, high):
+        lowest = _py_min(lowest, factor[index])
+    factor[low:high] = _BACK_UP_FACTOR * lowest
+    info[_COUNT] = first + 1
+    info[_READ] = 0
+    return _ADVANCED
 
-        Where the acceleration bound falls faster than the jerk can follow,
-        the scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target
-        over the stretch (lower again on repeated trouble).
-        """
-        if scan.status != 'live':
-            return False
-        if scan.s[-1] >= scan.end:
-            scan.status = 'end'
-            return False
-        budget = self.budget
-        budget.left -= 1
-        if budget.left < 0:
-            raise _NoMotion()
-        failure = self.step(scan)
-        if failure is None:
-            return True
-        if failure == 'speed' or scan.failures >= _BACK_UP_LIMIT or not back_up:
-            scan.status = failure
-            return False
-        scan.failures += 1
-        last = len(scan.s) - 1
-        first = max(0, last - _BACK_UP_STEPS)
-        step = self.table.step
-        if self.factor is None:
-            self.factor = [1.0] * (len(self.table.kappa) + 1)
-        low = max(int(scan.s[first] / step), 0)
-        high = min(int((scan.s[last] + _BACK_UP_AHEAD) / step) + 1, len(self.factor))
-        # A share of the stretch's lowest is below every share in it: all become that.
-        self.factor[low:high] = [_BACK_UP_FACTOR * min(self.factor[low:high])] * (high - low)
-        for values in (scan.t, scan.s, scan.v, scan.a):
-            del values[first + 1:]
-        del scan.j[first:]
-        scan.reading = None
-        return True
+
+@kernel
+def _run(scanner, scan):
+    """Advance ``scan`` until it stops: _STOPPED, or _OUT_OF_STEPS."""
+    while True:
+        done = _advance(scanner, scan, True)
+        if done != _ADVANCED:
+            return done
+
+
+@kernel
+def _speed_at(states, count, s_query):
+    """Return (found, s' at ``s_query``) interpolated between the first ``count`` states."""
+    position = _bisect_right(states[1], count, s_query)
+    if position == 0 or position >= count:
+        return False, 0.0
+    low, high = states[1, position - 1], states[1, position]
+    x = (s_query - low) / (high - low) if high > low else 0.0
+    return True, states[2, position - 1] + x * (states[2, position] - states[2, position - 1])
+
+
+@kernel
+def _state(states, count, time):
+    """Return (s, s', s'') at ``time`` [s] of a scan with ``count`` states (clamped to it)."""
+    steps = count - 1
+    index = min(max(_bisect_right(states[0], count, time) - 1, 0), max(steps - 1, 0))
+    if steps == 0:
+        return states[1, 0], states[2, 0], states[3, 0]
+    x = time - states[0, index]
+    v, a, j = states[2, index], states[3, index], states[4, index]
+    return (states[1, index] + x * (v + x * (a / 2.0 + x * j / 6.0)),
+            v + x * (a + x * j / 2.0), a + x * j)
+
+
+@kernel
+def _time_at(states, count, s_query):
+    """Return the time [s] at which a scan with ``count`` states reaches ``s_query`` [m]."""
+    t, s, v, a, j = states[0], states[1], states[2], states[3], states[4]
+    if count == 1:
+        return t[0]
+    last = count - 2
+    index = min(max(_bisect_right(s, count, s_query) - 1, 0), last)
+    low, high = t[index], t[min(index + 1, count - 1)]
+    # Bisection on the position, each piece evaluated as _state does (same piece, same
+    # arithmetic); it stops once the middle no longer moves.
+    middle = 0.5 * (low + high)
+    for _ in range(60):
+        piece = min(max(_bisect_right(t, count, middle) - 1, 0), last)
+        x = middle - t[piece]
+        if s[piece] + x * (v[piece] + x * (a[piece] / 2.0 + x * j[piece] / 6.0)) < s_query:
+            low = middle
+        else:
+            high = middle
+        previous, middle = middle, 0.5 * (low + high)
+        if middle == previous:
+            break
+    return middle
+
+
+@kernel
+def _rows(states, count, time):
+    """
+    Return the pieces from the start to ``time`` [s], shape (pieces, 5).
+
+    Each row: duration [s], s, s', s'', s''' at its start.
+    """
+    rows = np.empty((count - 1, 5))
+    pieces = 0
+    for index in range(count - 1):
+        if states[0, index] >= time:
+            break
+        rows[pieces, 0] = _py_min(states[0, index + 1], time) - states[0, index]
+        rows[pieces, 1:] = states[1:, index]
+        pieces += 1
+    return rows[:pieces]
+
+
+@kernel
+def _reversed_rows(states, count, time, length):
+    """
+    Return the forward-time pieces of a backward scan from ``time`` back to its start.
+
+    Shape (pieces, 5), rows as :func:`_rows`'; ``length`` [m] is the arc's.
+    """
+    rows = np.empty((count, 5))
+    index = min(max(_bisect_right(states[0], count, time) - 1, 0), count - 2)
+    s, v, a = _state(states, count, time)
+    pieces = 0
+    if time > states[0, index]:
+        rows[0, 0], rows[0, 1], rows[0, 2] = time - states[0, index], length - s, v
+        rows[0, 3], rows[0, 4] = -a, states[4, index]
+        pieces = 1
+    for index in range(index - 1, -1, -1):
+        rows[pieces, 0] = states[0, index + 1] - states[0, index]
+        rows[pieces, 1] = length - states[1, index + 1]
+        rows[pieces, 2], rows[pieces, 3] = states[2, index + 1], -states[3, index + 1]
+        rows[pieces, 4] = states[4, index]
+        pieces += 1
+    return rows[:pieces]

@@ -30,9 +30,22 @@ arithmetic in the order written, so their results equal the plain-Python ones bi
 as the plain Python it is written in (debugging, coverage), set ``NUMBA_DISABLE_JIT=1``.
 """
 
+import dataclasses
+import time
+
 import numba
 
-__all__ = ['kernel']
+__all__ = ['kernel', 'warm_up']
+
+# The requests that warm_up plans (start, pick, place [m]; the default robot's workspace):
+# the paper's example, once per join and per profile, so that every kernel a plan can call is
+# called once with the argument types it always gets.
+_WARM_UP_REQUEST = ((0.0, 0.0, -0.8), (0.0, 0.0, -0.8), (0.3, 0.0, -0.75))
+_WARM_UP_VARIANTS = ({'join': 'g2', 'profile': 'time_optimal'},
+                     {'join': 'paper', 'profile': 'time_optimal'},
+                     {'join': 'paper', 'profile': 'curvature'})
+# Holds True once warm_up has run in this process.
+_WARM = []
 
 
 def kernel(function):
@@ -51,3 +64,33 @@ def kernel(function):
 
     """
     return numba.njit(cache=True, nogil=True)(function)
+
+
+def warm_up():
+    """
+    Compile, or load from numba's cache, every kernel of the planning core before it is needed.
+
+    A kernel compiles on its first call (seconds, or some 0.1 s from the cache): the node calls
+    this at start-up so that its first request does not pay for it. It plans the paper's
+    example with each join and each profile on the default configuration (the kernels'
+    argument types do not depend on it, and a node's own robot or workspace might not reach
+    the example).
+
+    Returns
+    -------
+    float
+        Wall-clock time the warm-up took [s]; 0 once a process is warm (every node of a
+        process calls it).
+
+    """
+    # Imported here: the planner's modules import this one for ``kernel``.
+    from . import planner
+    if _WARM:
+        return 0.0
+    started = time.perf_counter()
+    config = planner.PlannerConfig()
+    start, pick, place = _WARM_UP_REQUEST
+    for variant in _WARM_UP_VARIANTS:
+        planner.plan_cycle(start, pick, place, dataclasses.replace(config, **variant))
+    _WARM.append(True)
+    return time.perf_counter() - started

@@ -26,12 +26,15 @@ scan itself is :mod:`~ellipath_ros.core.arc_scan`, this module joins two scans, 
 valleys and end speeds, the fallback and the vertical lines.
 """
 
-from bisect import bisect_right
 import math
 
 import numpy as np
 
-from .arc_scan import _ArcTable, _NoMotion, _Scan, _Scanner, _StepBudget
+from .arc_scan import (
+    _ACCEL_SQUARED, _advance, _ADVANCED, _arc_table, _backwards, _bisect_right,
+    _CELL, _COUNT, _jerk_range, _LIVE, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min, _Scanner,
+    _speed_at, _SPEED_TARGET, _STATUS, _STOPPED, _table_at, _TWO)
+from .compiled import kernel
 from .errors import LimitError
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
 from .motion import _PieceList, _rows_duration, TimedMotion
@@ -130,10 +133,11 @@ class _ArcPlanner:
             lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
             cells = np.repeat(lowest, _CAP_STAIR)
         self.grid = grid
-        table = _ArcTable(self.length, kappa, kappa_s, cells)
-        budget = _StepBudget(_STEP_BUDGET)
-        self.forward = _Scanner(table, limits, budget)
-        self.backward = _Scanner(table.backwards(), limits, budget)
+        table = _arc_table(kappa, kappa_s, cells)
+        cell = self.length / (len(kappa) - 1)
+        budget = np.array([_STEP_BUDGET])
+        self.forward = _Scanner(table, cell, limits, budget)
+        self.backward = _Scanner(_backwards(table), cell, limits, budget)
         # The ceiling places the speed valleys and their speeds.
         cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
         self.ceiling = self._cruise_speed(kappa, kappa_s, cap, _CEILING_SHARE)
@@ -207,22 +211,21 @@ class _ArcPlanner:
             line = _line_rows((0.0, 0.0, 0.0), (clearance, speed, accel), limits, speed_cap,
                               0.0, clearance)
             transition = float(bend.s_from_t(math.pi - bend.span_1))
-            table = self.forward.table
+            scanner = self.forward
         else:
             end = path.length - clearance
             line = _line_rows((end, speed, -accel), (path.length, 0.0, 0.0), limits, speed_cap,
                               end, path.length)
             transition = self.length - float(bend.s_from_t(bend.span_2))
-            table = self.backward.table
+            scanner = self.backward
         if line is None:
             return math.inf
         horizon = min(_PROBE_HORIZON * transition, 0.5 * self.length)
         reach = _PROBE_REACH * horizon
-        scan = _Scan(0.0, speed, accel, reach)
-        scanner = _Scanner(table, limits, _StepBudget(_PROBE_STEPS))
+        scanner = _Scanner(scanner.table, scanner.cell, limits, np.array([_PROBE_STEPS]))
+        scan = scanner.scan(0.0, speed, accel, reach)
         try:
-            while scanner.advance(scan):
-                pass
+            scanner.run(scan)
         except _NoMotion:
             return math.inf
         if scan.status != 'end':
@@ -285,7 +288,7 @@ class _ArcPlanner:
 
     def _half_spent(self):
         """Return whether half the step budget or half the hill budget is spent."""
-        return (self.forward.budget.left < _STEP_BUDGET // 2
+        return (self.forward.budget[0] < _STEP_BUDGET // 2
                 or self.hills >= _HILL_BUDGET // 2)
 
     def _arc(self, states):
@@ -304,12 +307,17 @@ class _ArcPlanner:
         if self.hills > _HILL_BUDGET:
             raise _NoMotion()
         length = self.length
-        forward = _Scan(s_a, state_a[0], state_a[1], s_b)
-        backward = _Scan(length - s_b, state_b[0], -state_b[1], length - s_a)
-        self._scan_both(forward, backward)
+        forward = self.forward.scan(s_a, state_a[0], state_a[1], s_b)
+        backward = self.backward.scan(length - s_b, state_b[0], -state_b[1], length - s_a)
+        scanners = self.forward.parts(), self.backward.parts()
+        if _scan_both(*scanners, forward.parts(), backward.parts(), length,
+                      _JOIN_ROOM_STEPS) == _OUT_OF_STEPS:
+            raise _NoMotion()
         joined = self._join(forward, backward)
         if joined is None:
-            self._add_room(forward, backward, _JOIN_ROOM_MORE)
+            if _add_room(*scanners, forward.parts(), backward.parts(),
+                         _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
+                raise _NoMotion()
             joined = self._join(forward, backward)
         if joined is not None:
             return joined, state_a, state_b
@@ -331,7 +339,7 @@ class _ArcPlanner:
         failed_a = forward.status != 'end' and free_a
         failed_b = backward.status != 'end' and free_b
         if failed_a and failed_b:
-            failed_a = forward.s[-1] - s_a < backward.s[-1] - (length - s_b)
+            failed_a = forward.last()[1] - s_a < backward.last()[1] - (length - s_b)
             failed_b = not failed_a
         if failed_a or failed_b:
             raise _EndTooFast(failed_a)
@@ -346,7 +354,7 @@ class _ArcPlanner:
         """
         grid_step = self.grid[1]
         margin = 4 * grid_step
-        ends = sorted((forward.s[-1], self.length - backward.s[-1]))
+        ends = sorted((forward.last()[1], self.length - backward.last()[1]))
         low = int(max(ends[0] - _VALLEY_REACH, s_a + margin) / grid_step)
         high = int(min(ends[1] + _VALLEY_REACH, s_b - margin) / grid_step) + 1
         if high - low < 3:
@@ -401,36 +409,6 @@ class _ArcPlanner:
                 failed = trial
         return solved
 
-    def _scan_both(self, forward, backward):
-        """
-        Advance the slower of the two scans until the two speed curves cross.
-
-        Both scans speed up away from their start, so the crossing lies
-        where the slower one catches up; neither needs to run past it.
-        """
-        length = self.length
-        while forward.status == 'live' or backward.status == 'live':
-            if forward.status == 'live' and (backward.status != 'live'
-                                             or forward.v[-1] <= backward.v[-1]):
-                # The speed curves cannot cross before the scans overlap.
-                if (self.forward.advance(forward)
-                        and length - forward.s[-1] < backward.s[-1]):
-                    other = backward.speed_at(length - forward.s[-1])
-                    if other is not None and forward.v[-1] >= other * (1.0 - 1e-12):
-                        break
-            elif (self.backward.advance(backward)
-                  and length - backward.s[-1] < forward.s[-1]):
-                other = forward.speed_at(length - backward.s[-1])
-                if other is not None and backward.v[-1] >= other * (1.0 - 1e-12):
-                    break
-        self._add_room(forward, backward, _JOIN_ROOM_STEPS)
-
-    def _add_room(self, forward, backward, steps):
-        """Advance both scans ``steps`` past their crossing (no backing up past it)."""
-        for _ in range(steps):
-            self.forward.advance(forward, back_up=False)
-            self.backward.advance(backward, back_up=False)
-
     def _join(self, forward, backward):
         """
         Return the rows forward scan -> one constant-jerk piece -> backward scan, or None.
@@ -442,29 +420,29 @@ class _ArcPlanner:
         are simply switched.
         """
         length = self.length
-        crossing = self._crossing(forward, backward)
-        if crossing is None:
+        index, cruising = _crossing(forward.states, forward.count, backward.states,
+                                    backward.count, length)
+        if index < 0:
             return None
-        index, cruising = crossing
+        x_c, s_c, v_c = forward.states[:3, index].tolist()
         if cruising:
-            s_join = forward.s[index]
-            y = backward.time_at(length - s_join)
-            return forward.rows(forward.t[index]) + backward.reversed_rows(y, length)
-        x_c = forward.t[index]
-        y_c = backward.time_at(length - forward.s[index])
+            y = backward.time_at(length - s_c)
+            return forward.rows(x_c) + backward.reversed_rows(y, length)
+        y_c = backward.time_at(length - s_c)
         a_f = forward.state(x_c)[2]
         a_b = -backward.state(y_c)[2]
-        bounds = self.forward.jerk_range(forward.s[index], forward.v[index], a_f)
-        if bounds is None:
+        table, constants = self.forward.table, self.forward.constants
+        found, lowest, highest = _jerk_range(table, constants, s_c, v_c, a_f)
+        if not found:
             return None
-        jerk = 0.99 * (bounds[0] if a_b < a_f else bounds[1])
+        jerk = 0.99 * (lowest if a_b < a_f else highest)
         for _ in range(5):
             solution = self._solve_join(forward, backward, x_c, y_c, jerk)
             if solution is None:
                 return None
             x, y, duration = solution
-            worst = self._piece_check(forward.state(x), duration, jerk)
-            if worst is None:
+            legal, worst = _piece_check(table, constants, *forward.state(x), duration, jerk)
+            if not legal:
                 return None
             if worst == jerk:
                 s, v, a = forward.state(x)
@@ -473,32 +451,10 @@ class _ArcPlanner:
             jerk = 0.99 * worst
         return None
 
-    def _crossing(self, forward, backward):
-        """Return (forward index, both cruising) where the forward scan first tops the backward."""
-        length = self.length
-        sigma = backward.s
-        previous = None
-        for index in range(len(forward.s)):
-            s = forward.s[index]
-            position = bisect_right(sigma, length - s)
-            if position == 0 or position >= len(sigma):
-                continue
-            x = (length - s - sigma[position - 1]) / (sigma[position] - sigma[position - 1])
-            v_b = backward.v[position - 1] + x * (backward.v[position] - backward.v[position - 1])
-            difference = forward.v[index] - v_b
-            if (abs(difference) <= 1e-9 * v_b and index < len(forward.j)
-                    and forward.j[index] == 0.0 and forward.a[index] == 0.0
-                    and backward.a[position] == 0.0 and backward.a[position - 1] == 0.0):
-                return index, True
-            if difference > 1e-12 and previous is not None:
-                return index, False
-            previous = difference
-        return None
-
     def _solve_join(self, forward, backward, x, y, jerk):
         """Solve the join for (x, y, duration) near the crossing (x, y); None if it fails."""
         length = self.length
-        x_max, y_max = forward.t[-1], backward.t[-1]
+        x_max, y_max = forward.last()[0], backward.last()[0]
 
         def residual(x, y):
             s_f, v_f, a_f = forward.state(x)
@@ -587,27 +543,6 @@ class _ArcPlanner:
             else:
                 inside = middle
         return None
-
-    def _piece_check(self, start, duration, jerk):
-        """
-        Check a constant-jerk piece from ``start`` against the limits at 9 points.
-
-        Returns ``jerk`` if it is legal all along, the most aggressive legal
-        value otherwise (same sign, smaller), or None if no jerk can serve.
-        """
-        s, v, a = start
-        scanner = self.forward
-        worst = jerk
-        for x in np.linspace(0.0, duration, 9):
-            s1 = s + x * (v + x * (a / 2.0 + x * jerk / 6.0))
-            v1, a1 = v + x * (a + x * jerk / 2.0), a + x * jerk
-            kappa, _, cap = scanner.table.at(s1)
-            bounds = scanner.jerk_range(s1, v1, a1)
-            if (bounds is None or v1 < -1e-9 or v1 > min(cap, scanner.speed) * (1.0 + 1e-9)
-                    or a1 * a1 + (kappa * v1 * v1) ** 2 > scanner.accel ** 2 * (1.0 + 1e-6)):
-                return None
-            worst = max(worst, bounds[0]) if jerk < 0.0 else min(worst, bounds[1])
-        return worst if worst * jerk > 0.0 else None
 
     def fallback(self, v_in, v_out):
         """
@@ -741,3 +676,124 @@ def _with_lines(path, limits, speed_cap, arc_rows, entry, exit_state):
     if lift is None or descent is None:
         return None
     return lift, arc_rows, descent, entry, exit_state
+
+
+# -- the kernels that run the scans (see arc_scan's layouts) ----------------------------------
+
+@kernel
+def _scan_both(forward_scanner, backward_scanner, forward, backward, length, room):
+    """
+    Advance the slower of the two scans until their speed curves cross, then ``room`` more.
+
+    Both scans speed up away from their start, so the crossing lies where the
+    slower one catches up; neither needs to run past it but for the room the
+    join needs (see :func:`_add_room`). Returns _STOPPED, or _OUT_OF_STEPS
+    once the budget is spent. ``length`` [m] is the arc's.
+    """
+    forward_states, forward_info, _ = forward
+    backward_states, backward_info, _ = backward
+    while forward_info[_STATUS] == _LIVE or backward_info[_STATUS] == _LIVE:
+        if forward_info[_STATUS] == _LIVE and (
+                backward_info[_STATUS] != _LIVE
+                or forward_states[2, forward_info[_COUNT] - 1]
+                <= backward_states[2, backward_info[_COUNT] - 1]):
+            done, crossed = _step_towards(forward_scanner, forward, backward_states,
+                                          backward_info[_COUNT], length)
+        else:
+            done, crossed = _step_towards(backward_scanner, backward, forward_states,
+                                          forward_info[_COUNT], length)
+        if done == _OUT_OF_STEPS:
+            return done
+        if crossed:
+            break
+    return _add_room(forward_scanner, backward_scanner, forward, backward, room)
+
+
+@kernel
+def _step_towards(scanner, scan, other, other_count, length):
+    """
+    Advance ``scan`` once: return (what _advance did, whether it now tops the other scan).
+
+    ``other`` holds the other scan's states (the first ``other_count``). The
+    speed curves cannot cross before the scans overlap; where they do, the
+    scan tops the other where its speed reaches the other's at the same place.
+    """
+    done = _advance(scanner, scan, True)
+    states, info, _ = scan
+    last = info[_COUNT] - 1
+    crossed = False
+    if done == _ADVANCED and length - states[1, last] < other[1, other_count - 1]:
+        found, speed = _speed_at(other, other_count, length - states[1, last])
+        crossed = found and states[2, last] >= speed * (1.0 - 1e-12)
+    return done, crossed
+
+
+@kernel
+def _add_room(forward_scanner, backward_scanner, forward, backward, steps):
+    """Advance both scans ``steps`` past their crossing (no backing up past it)."""
+    for _ in range(steps):
+        if _advance(forward_scanner, forward, False) == _OUT_OF_STEPS:
+            return _OUT_OF_STEPS
+        if _advance(backward_scanner, backward, False) == _OUT_OF_STEPS:
+            return _OUT_OF_STEPS
+    return _STOPPED
+
+
+@kernel
+def _crossing(forward, forward_count, backward, backward_count, length):
+    """
+    Return (forward index, both cruising) where the forward scan first tops the backward.
+
+    ``forward`` and ``backward`` are the scans' states (shape (5, capacity),
+    the first ``*_count`` filled); the index is -1 where they do not cross.
+    """
+    sigma = backward[1]
+    started = False
+    for index in range(forward_count):
+        s = forward[1, index]
+        position = _bisect_right(sigma, backward_count, length - s)
+        if position == 0 or position >= backward_count:
+            continue
+        x = (length - s - sigma[position - 1]) / (sigma[position] - sigma[position - 1])
+        v_b = backward[2, position - 1] + x * (backward[2, position] - backward[2, position - 1])
+        difference = forward[2, index] - v_b
+        if (abs(difference) <= 1e-9 * v_b and index < forward_count - 1
+                and forward[4, index] == 0.0 and forward[3, index] == 0.0
+                and backward[3, position] == 0.0 and backward[3, position - 1] == 0.0):
+            return index, True
+        if difference > 1e-12 and started:
+            return index, False
+        started = True
+    return -1, False
+
+
+@kernel
+def _piece_check(table, constants, s, v, a, duration, jerk):
+    """
+    Check a constant-jerk piece from (s, s', s'') against the limits at 9 points.
+
+    Returns (legal, jerk): ``jerk`` [m/s**3] if it is legal all along, the
+    most aggressive legal value otherwise (same sign, smaller); legal is False
+    if no jerk can serve. The points are ``numpy.linspace(0, duration, 9)``'s,
+    computed as it does.
+    """
+    speed = constants[_SPEED_TARGET]
+    accel_bound = constants[_ACCEL_SQUARED] * (1.0 + 1e-6)
+    step = duration / 8
+    worst = jerk
+    for point in range(9):
+        if point == 8:
+            x = duration
+        elif step == 0.0:
+            x = point / 8 * duration + 0.0
+        else:
+            x = point * step + 0.0
+        s1 = s + x * (v + x * (a / 2.0 + x * jerk / 6.0))
+        v1, a1 = v + x * (a + x * jerk / 2.0), a + x * jerk
+        kappa, _, cap = _table_at(table, constants[_CELL], s1)
+        found, lowest, highest = _jerk_range(table, constants, s1, v1, a1)
+        if (not found or v1 < -1e-9 or v1 > _py_min(cap, speed) * (1.0 + 1e-9)
+                or a1 * a1 + math.pow(kappa * v1 * v1, constants[_TWO]) > accel_bound):
+            return False, 0.0
+        worst = _py_max(worst, lowest) if jerk < 0.0 else _py_min(worst, highest)
+    return worst * jerk > 0.0, worst
