@@ -33,7 +33,7 @@ import numpy as np
 from .arc_scan import (
     _ACCEL_SQUARED, _advance, _ADVANCED, _arc_table, _backwards, _bisect_right,
     _CELL, _COUNT, _jerk_range, _LIVE, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min, _Scanner,
-    _speed_at, _SPEED_TARGET, _STATUS, _STOPPED, _table_at, _TWO)
+    _speed_at, _SPEED_TARGET, _state, _STATUS, _STOPPED, _table_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
@@ -145,6 +145,11 @@ class _ArcPlanner:
         self.kappa_end = ((0.0, 0.0) if path.join == 'g2'
                           else (float(kappa[0]), float(kappa[-1])))
         self.hills = 0
+        # The vertical lines solved so far by Ruckig ({arguments: rows}): the probes solve the
+        # lines to the end states they try, the chosen one is solved again for the motion.
+        self._lines = {}
+        # The lengths [m] of the G2 transitions at T1 and T2 the probes look ahead over.
+        self._transitions = {}
 
     def _cruise_speed(self, kappa, kappa_s, cap, share):
         """Return the speed at which s'' = 0 uses ``share`` of the accel and jerk limits."""
@@ -155,6 +160,14 @@ class _ArcPlanner:
                 np.full(kappa.shape, limits.max_speed * _SPEED_MARGIN), cap,
                 np.sqrt(share * accel / kappa),
                 (share * jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
+
+    def line_rows(self, start, end, speed_cap, s_start, s_end):
+        """Return :func:`_line_rows` of a vertical line on the planner's limits, solved once."""
+        # Exact keys: -0.0 (a mirrored rest acceleration) is not 0.0 to Ruckig's last bit.
+        key = tuple(float(value).hex() for value in (*start, *end, s_start, s_end)), speed_cap
+        if key not in self._lines:
+            self._lines[key] = _line_rows(start, end, self.limits, speed_cap, s_start, s_end)
+        return self._lines[key]
 
     def end_speed(self, clearance, at_start, speed_cap):
         """Return the speed aimed at at T1 (``at_start``) or T2 (see :meth:`end_state`)."""
@@ -208,19 +221,21 @@ class _ArcPlanner:
         path, limits = self.path, self.limits
         bend = path.bend
         if at_start:
-            line = _line_rows((0.0, 0.0, 0.0), (clearance, speed, accel), limits, speed_cap,
-                              0.0, clearance)
-            transition = float(bend.s_from_t(math.pi - bend.span_1))
+            line = self.line_rows((0.0, 0.0, 0.0), (clearance, speed, accel), speed_cap,
+                                  0.0, clearance)
+            if at_start not in self._transitions:
+                self._transitions[at_start] = float(bend.s_from_t(math.pi - bend.span_1))
             scanner = self.forward
         else:
             end = path.length - clearance
-            line = _line_rows((end, speed, -accel), (path.length, 0.0, 0.0), limits, speed_cap,
-                              end, path.length)
-            transition = self.length - float(bend.s_from_t(bend.span_2))
+            line = self.line_rows((end, speed, -accel), (path.length, 0.0, 0.0), speed_cap,
+                                  end, path.length)
+            if at_start not in self._transitions:
+                self._transitions[at_start] = self.length - float(bend.s_from_t(bend.span_2))
             scanner = self.backward
         if line is None:
             return math.inf
-        horizon = min(_PROBE_HORIZON * transition, 0.5 * self.length)
+        horizon = min(_PROBE_HORIZON * self._transitions[at_start], 0.5 * self.length)
         reach = _PROBE_REACH * horizon
         scanner = _Scanner(scanner.table, scanner.cell, limits, np.array([_PROBE_STEPS]))
         scan = scanner.scan(0.0, speed, accel, reach)
@@ -437,10 +452,11 @@ class _ArcPlanner:
             return None
         jerk = 0.99 * (lowest if a_b < a_f else highest)
         for _ in range(5):
-            solution = self._solve_join(forward, backward, x_c, y_c, jerk)
-            if solution is None:
+            solved, x, y, duration = _solve_join(
+                (forward.states, forward.count, backward.states, backward.count, length, jerk),
+                x_c, y_c)
+            if not solved:
                 return None
-            x, y, duration = solution
             legal, worst = _piece_check(table, constants, *forward.state(x), duration, jerk)
             if not legal:
                 return None
@@ -449,99 +465,6 @@ class _ArcPlanner:
                 return (forward.rows(x) + [(duration, s, v, a, jerk)]
                         + backward.reversed_rows(y, length))
             jerk = 0.99 * worst
-        return None
-
-    def _solve_join(self, forward, backward, x, y, jerk):
-        """Solve the join for (x, y, duration) near the crossing (x, y); None if it fails."""
-        length = self.length
-        x_max, y_max = forward.last()[0], backward.last()[0]
-
-        def residual(x, y):
-            s_f, v_f, a_f = forward.state(x)
-            s_b, v_b, a_b = backward.state(y)
-            s_b, a_b = length - s_b, -a_b
-            tau = (a_b - a_f) / jerk
-            return (v_f + tau * (a_f + tau * jerk / 2.0) - v_b,
-                    s_f + tau * (v_f + tau * (a_f / 2.0 + tau * jerk / 6.0)) - s_b, tau)
-
-        def accept(x, y):
-            tau = residual(x, y)[2]
-            return (x, y, tau) if tau >= 0.0 else None
-
-        x_c = x
-        tau0 = max(residual(x, y)[2], 0.0)
-        x, y = min(max(x - tau0 / 2.0, 0.0), x_max), min(max(y - tau0 / 2.0, 0.0), y_max)
-        delta = 1e-7
-        for _ in range(40):
-            e_v, e_s, tau = residual(x, y)
-            if abs(e_v) < 1e-10 and abs(e_s) < 1e-12:
-                return accept(x, y)
-            dv_x, ds_x, _ = residual(x + delta, y)
-            dv_y, ds_y, _ = residual(x, y + delta)
-            j11, j12 = (dv_x - e_v) / delta, (dv_y - e_v) / delta
-            j21, j22 = (ds_x - e_s) / delta, (ds_y - e_s) / delta
-            det = j11 * j22 - j12 * j21
-            if det == 0.0:
-                return None
-            step_x = (j22 * e_v - j12 * e_s) / det
-            step_y = (j11 * e_s - j21 * e_v) / det
-            # Damped: a few milliseconds at most per iteration.
-            scale = min(1.0, 0.005 / max(abs(step_x), abs(step_y), 1e-300))
-            x = min(max(x - scale * step_x, 0.0), x_max)
-            y = min(max(y - scale * step_y, 0.0), y_max)
-
-        # Newton stalls where a scan has kinks (levelling off, cruising): bracket instead,
-        # y for s continuity at each x, then x for s' continuity.
-        def y_for(x):
-            y = _bracket_root(lambda y: residual(x, y)[1], 0.0, y_max, 1e-13)
-            return None if y is None else (y, residual(x, y)[0])
-
-        low, step = x_c, 0.002
-        end = y_for(x_c)
-        if end is None:
-            return None
-        # The smallest x with a y found before the first without one, and that one.
-        inside, outside = x_c, None
-        while True:
-            low = max(low - step, 0.0)
-            start = y_for(low)
-            if start is not None and start[1] * end[1] <= 0.0:
-                break
-            if start is None:
-                outside = low if outside is None else outside
-            elif outside is None:
-                inside = low
-            if low <= 0.0:
-                low = self._edge_bracket(y_for, end, inside, outside)
-                if low is None:
-                    return None
-                break
-            step *= 2.0
-        x = _bracket_root(lambda x: (y_for(x) or (0.0, math.nan))[1], low, x_c, 1e-11)
-        found = None if x is None else y_for(x)
-        return None if found is None else accept(x, found[0])
-
-    @staticmethod
-    def _edge_bracket(y_for, end, inside, outside):
-        """
-        Return an x in (outside, inside] where s' continuity changes sign from ``end``, or None.
-
-        The doubling steps of the search may jump from an x whose piece ends
-        within the backward scan to one beyond it (no y), over the stretch in
-        between where the sign changes (a backward scan that stopped right at
-        the crossing): bisect towards that edge.
-        """
-        if outside is None:
-            return None
-        for _ in range(_JOIN_EDGE_STEPS):
-            middle = 0.5 * (outside + inside)
-            found = y_for(middle)
-            if found is None:
-                outside = middle
-            elif found[1] * end[1] <= 0.0:
-                return middle
-            else:
-                inside = middle
         return None
 
     def fallback(self, v_in, v_out):
@@ -586,34 +509,6 @@ class _ArcPlanner:
         return rows, (speeds[0], 0.0), (speeds[-1], 0.0)
 
 
-def _bracket_root(function, low, high, tolerance):
-    """Return a root of ``function`` in [low, high] (Illinois), or None without a sign change."""
-    f_low, f_high = function(low), function(high)
-    if not (f_low * f_high <= 0.0):
-        return None
-    side = 0
-    for _ in range(100):
-        if high - low <= tolerance or f_low == f_high:
-            break
-        middle = (low * f_high - high * f_low) / (f_high - f_low)
-        f_middle = function(middle)
-        if not math.isfinite(f_middle):
-            return None
-        if f_middle * f_high > 0.0:
-            high, f_high = middle, f_middle
-            if side == -1:
-                f_low *= 0.5
-            side = -1
-        elif f_middle * f_low > 0.0:
-            low, f_low = middle, f_middle
-            if side == 1:
-                f_high *= 0.5
-            side = 1
-        else:
-            return middle
-    return low if abs(f_low) <= abs(f_high) else high
-
-
 def _optimal_motion(path, limits, speed_cap):
     """Build the time-optimal profile (see :func:`time_motion`)."""
     if path.arc is None:
@@ -629,17 +524,17 @@ def _optimal_motion(path, limits, speed_cap):
             arc = planner.solve(entry, exit_state)
         except _NoMotion:
             break
-        parts = _with_lines(path, limits, speed_cap, *arc)
+        parts = _with_lines(planner, speed_cap, *arc)
         if parts is not None:
             break
         # A line cannot reach the arc's entry (exit) state: ask for a slower one at rest
         # acceleration.
-        if _with_lines(path, limits, speed_cap, arc[0], arc[1], (0.0, 0.0)) is None:
+        if _with_lines(planner, speed_cap, arc[0], arc[1], (0.0, 0.0)) is None:
             entry = (_END_RETRY_FACTOR * min(entry[0], arc[1][0]), 0.0)
         else:
             exit_state = (_END_RETRY_FACTOR * min(exit_state[0], arc[2][0]), 0.0)
     if parts is None:
-        parts = _with_lines(path, limits, speed_cap,
+        parts = _with_lines(planner, speed_cap,
                             *planner.fallback(entry[0], exit_state[0]))
     if parts is None:
         raise LimitError('time-optimal profile: expected vertical segments that reach the '
@@ -658,19 +553,19 @@ def _optimal_motion(path, limits, speed_cap):
                        exit_state[0] ** 2 * planner.kappa_end[1], None, law)
 
 
-def _with_lines(path, limits, speed_cap, arc_rows, entry, exit_state):
+def _with_lines(planner, speed_cap, arc_rows, entry, exit_state):
     """Return (lift rows, arc rows, descent rows, entry, exit), or None if a line fails."""
+    path = planner.path
     c1, arc_length, _ = (float(value) for value in path.segment_lengths)
     lift, descent = [], []
     if c1 > 0.0:
-        lift = _line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), limits, speed_cap,
-                          0.0, c1)
+        lift = planner.line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), speed_cap, 0.0, c1)
     elif entry[0] > 0.0 or entry[1] != 0.0:
         lift = None
     end = c1 + arc_length
     if path.length > end:
-        descent = _line_rows((end, exit_state[0], exit_state[1]), (path.length, 0.0, 0.0),
-                             limits, speed_cap, end, path.length)
+        descent = planner.line_rows((end, exit_state[0], exit_state[1]),
+                                    (path.length, 0.0, 0.0), speed_cap, end, path.length)
     elif exit_state[0] > 0.0 or exit_state[1] != 0.0:
         descent = None
     if lift is None or descent is None:
@@ -797,3 +692,189 @@ def _piece_check(table, constants, s, v, a, duration, jerk):
             return False, 0.0
         worst = _py_max(worst, lowest) if jerk < 0.0 else _py_min(worst, highest)
     return worst * jerk > 0.0, worst
+
+
+@kernel
+def _join_residual(problem, x, y):
+    """
+    Return (s' mismatch, s mismatch, duration) of the join piece from x to y.
+
+    ``problem`` is (forward states, their count, backward states, their count,
+    arc length [m], the piece's jerk [m/s**3]); the piece starts at time x [s]
+    of the forward scan with that jerk and lasts until its s'' is the backward
+    scan's at its time y [s].
+    """
+    forward, forward_count, backward, backward_count, length, jerk = problem
+    s_f, v_f, a_f = _state(forward, forward_count, x)
+    s_b, v_b, a_b = _state(backward, backward_count, y)
+    s_b, a_b = length - s_b, -a_b
+    tau = (a_b - a_f) / jerk
+    return (v_f + tau * (a_f + tau * jerk / 2.0) - v_b,
+            s_f + tau * (v_f + tau * (a_f / 2.0 + tau * jerk / 6.0)) - s_b, tau)
+
+
+@kernel
+def _solve_join(problem, x, y):
+    """
+    Solve the join for (solved, x, y, duration) near the crossing (x, y) [s].
+
+    Newton on (x, y) for s and s' continuity (see :func:`_join_residual`);
+    where it stalls (a scan's kinks: levelling off, cruising), brackets
+    instead: y for s continuity at each x (:func:`_y_for`), then x for s'
+    continuity. ``solved`` is False where neither finds a piece of duration
+    >= 0.
+    """
+    forward, forward_count, backward, backward_count = problem[:4]
+    x_max, y_max = forward[0, forward_count - 1], backward[0, backward_count - 1]
+    x_c = x
+    tau0 = _py_max(_join_residual(problem, x, y)[2], 0.0)
+    x = _py_min(_py_max(x - tau0 / 2.0, 0.0), x_max)
+    y = _py_min(_py_max(y - tau0 / 2.0, 0.0), y_max)
+    delta = 1e-7
+    for _ in range(40):
+        e_v, e_s, tau = _join_residual(problem, x, y)
+        if abs(e_v) < 1e-10 and abs(e_s) < 1e-12:
+            return tau >= 0.0, x, y, tau
+        dv_x, ds_x = _join_residual(problem, x + delta, y)[:2]
+        dv_y, ds_y = _join_residual(problem, x, y + delta)[:2]
+        j11, j12 = (dv_x - e_v) / delta, (dv_y - e_v) / delta
+        j21, j22 = (ds_x - e_s) / delta, (ds_y - e_s) / delta
+        det = j11 * j22 - j12 * j21
+        if det == 0.0:
+            return False, x, y, 0.0
+        step_x = (j22 * e_v - j12 * e_s) / det
+        step_y = (j11 * e_s - j21 * e_v) / det
+        # Damped: a few milliseconds at most per iteration.
+        scale = _py_min(1.0, 0.005 / _py_max(_py_max(abs(step_x), abs(step_y)), 1e-300))
+        x = _py_min(_py_max(x - scale * step_x, 0.0), x_max)
+        y = _py_min(_py_max(y - scale * step_y, 0.0), y_max)
+
+    low, step = x_c, 0.002
+    found, end = _y_for(problem, x_c, y_max)[::2]
+    if not found:
+        return False, x, y, 0.0
+    # The smallest x with a y found before the first without one, and that one.
+    inside, outside, beyond = x_c, 0.0, False
+    while True:
+        low = _py_max(low - step, 0.0)
+        found, start = _y_for(problem, low, y_max)[::2]
+        if found and start * end <= 0.0:
+            break
+        if not found:
+            if not beyond:
+                outside, beyond = low, True
+        elif not beyond:
+            inside = low
+        if low <= 0.0:
+            if not beyond:
+                return False, x, y, 0.0
+            found, low = _edge_bracket(problem, y_max, end, inside, outside)
+            if not found:
+                return False, x, y, 0.0
+            break
+        step *= 2.0
+    found, x = _x_for(problem, y_max, low, x_c)
+    if found:
+        found, y = _y_for(problem, x, y_max)[:2]
+    if not found:
+        return False, x, y, 0.0
+    tau = _join_residual(problem, x, y)[2]
+    return tau >= 0.0, x, y, tau
+
+
+@kernel
+def _edge_bracket(problem, y_max, end, inside, outside):
+    """
+    Return (found, x): an x in (outside, inside] where s' continuity changes sign from ``end``.
+
+    The doubling steps of the search may jump from an x whose piece ends
+    within the backward scan to one beyond it (no y), over the stretch in
+    between where the sign changes (a backward scan that stopped right at
+    the crossing): bisect towards that edge.
+    """
+    for _ in range(_JOIN_EDGE_STEPS):
+        middle = 0.5 * (outside + inside)
+        found, mismatch = _y_for(problem, middle, y_max)[::2]
+        if not found:
+            outside = middle
+        elif mismatch * end <= 0.0:
+            return True, middle
+        else:
+            inside = middle
+    return False, 0.0
+
+
+@kernel
+def _y_for(problem, x, y_max):
+    """
+    Return (found, y, s' mismatch there): the y in [0, y_max] where s is continuous at x.
+
+    A root of the s mismatch of :func:`_join_residual` by the Illinois
+    method (to 1e-13 s); found is False without a sign change or where it is
+    not finite.
+    """
+    low, high = 0.0, y_max
+    f_low, f_high = _join_residual(problem, x, low)[1], _join_residual(problem, x, high)[1]
+    if not (f_low * f_high <= 0.0):
+        return False, 0.0, 0.0
+    side = 0
+    for _ in range(100):
+        if high - low <= 1e-13 or f_low == f_high:
+            break
+        middle = (low * f_high - high * f_low) / (f_high - f_low)
+        f_middle = _join_residual(problem, x, middle)[1]
+        if not math.isfinite(f_middle):
+            return False, 0.0, 0.0
+        low, high, f_low, f_high, side, root = _illinois(
+            low, high, f_low, f_high, side, middle, f_middle)
+        if root:
+            return True, middle, _join_residual(problem, x, middle)[0]
+    y = low if abs(f_low) <= abs(f_high) else high
+    return True, y, _join_residual(problem, x, y)[0]
+
+
+@kernel
+def _x_for(problem, y_max, low, high):
+    """
+    Return (found, x): the x in [low, high] where s' is continuous (with s, see :func:`_y_for`).
+
+    The Illinois method to 1e-11 s; found is False without a sign change,
+    or where no y exists or the mismatch is not finite at a trial x.
+    """
+    found_low, f_low = _y_for(problem, low, y_max)[::2]
+    found_high, f_high = _y_for(problem, high, y_max)[::2]
+    if not (found_low and found_high and f_low * f_high <= 0.0):
+        return False, 0.0
+    side = 0
+    for _ in range(100):
+        if high - low <= 1e-11 or f_low == f_high:
+            break
+        middle = (low * f_high - high * f_low) / (f_high - f_low)
+        found, f_middle = _y_for(problem, middle, y_max)[::2]
+        if not (found and math.isfinite(f_middle)):
+            return False, 0.0
+        low, high, f_low, f_high, side, root = _illinois(
+            low, high, f_low, f_high, side, middle, f_middle)
+        if root:
+            return True, middle
+    return True, low if abs(f_low) <= abs(f_high) else high
+
+
+@kernel
+def _illinois(low, high, f_low, f_high, side, middle, f_middle):
+    """
+    Narrow the bracket [low, high] to the trial ``middle`` (the Illinois method).
+
+    Returns (low, high, f_low, f_high, side, root): the function's values
+    at the new ends (the end kept twice in a row halved), which end moved
+    last (-1 high, 1 low), and whether ``middle`` is a root (f_middle is 0).
+    """
+    if f_middle * f_high > 0.0:
+        if side == -1:
+            f_low *= 0.5
+        return low, middle, f_low, f_middle, -1, False
+    if f_middle * f_low > 0.0:
+        if side == 1:
+            f_high *= 0.5
+        return middle, high, f_middle, f_high, 1, False
+    return low, high, f_low, f_high, side, True
