@@ -8,13 +8,19 @@ export AMENT_PREFIX_PATH ?= $(abspath $(VENV))
 
 .PHONY: demo test lint bench figures colcon clean
 
-SOURCES := $(shell find ellipath_ros config launch resource -type f -not -name '*.pyc')
+SOURCES := $(shell find ellipath_ros config launch resource -type f -not -path '*/__pycache__/*')
 
+# After installing, numba compiles the planner's kernels (~20 s CPU) into its cache once per
+# copy, not in whichever test process calls them first: the installed copy (run from / so that
+# the checkout is not on the path), which the CLI and node subprocesses use, and the checkout,
+# which pytest imports.
 $(BIN)/ellipath: setup.py setup.cfg requirements-dev.txt package.xml $(SOURCES)
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -r requirements-dev.txt
 	$(BIN)/python -m pip install --quiet '.[plot,bench,test]'
+	cd / && $(abspath $(BIN))/python -c 'from ellipath_ros.core.compiled import warm_up; warm_up()'
+	$(BIN)/python -c 'from ellipath_ros.core.compiled import warm_up; warm_up()'
 	touch $@
 
 demo: $(BIN)/ellipath

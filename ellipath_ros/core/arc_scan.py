@@ -208,11 +208,6 @@ class _Scan:
         """Return the last state (t, s, s', s'') as floats."""
         return tuple(self.states[:4, self.count - 1].tolist())
 
-    def speed_at(self, s_query):
-        """Return s' at ``s_query`` interpolated between states, or None outside the scan."""
-        found, speed = _speed_at(self.states, self.count, s_query)
-        return speed if found else None
-
     def state(self, time):
         """Return (s, s', s'') at ``time`` (clamped to the scan)."""
         return _state(self.states, self.count, time)

@@ -325,13 +325,13 @@ class _ArcPlanner:
         forward = self.forward.scan(s_a, state_a[0], state_a[1], s_b)
         backward = self.backward.scan(length - s_b, state_b[0], -state_b[1], length - s_a)
         scanners = self.forward.parts(), self.backward.parts()
-        if _scan_both(*scanners, forward.parts(), backward.parts(), length,
+        if _scan_both(*scanners, forward.parts(), backward.parts(), length, True,
                       _JOIN_ROOM_STEPS) == _OUT_OF_STEPS:
             raise _NoMotion()
         joined = self._join(forward, backward)
         if joined is None:
-            if _add_room(*scanners, forward.parts(), backward.parts(),
-                         _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
+            if _scan_both(*scanners, forward.parts(), backward.parts(), length, False,
+                          _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
                 raise _NoMotion()
             joined = self._join(forward, backward)
         if joined is not None:
@@ -576,18 +576,20 @@ def _with_lines(planner, speed_cap, arc_rows, entry, exit_state):
 # -- the kernels that run the scans (see arc_scan's layouts) ----------------------------------
 
 @kernel
-def _scan_both(forward_scanner, backward_scanner, forward, backward, length, room):
+def _scan_both(forward_scanner, backward_scanner, forward, backward, length, search, room):
     """
     Advance the slower of the two scans until their speed curves cross, then ``room`` more.
 
     Both scans speed up away from their start, so the crossing lies where the
     slower one catches up; neither needs to run past it but for the room the
-    join needs (see :func:`_add_room`). Returns _STOPPED, or _OUT_OF_STEPS
-    once the budget is spent. ``length`` [m] is the arc's.
+    join needs (see :func:`_add_room`; without ``search``, only that room is
+    added). Returns _STOPPED, or _OUT_OF_STEPS once the budget is spent.
+    ``length`` [m] is the arc's. (One kernel for both uses: each kernel
+    Python calls is compiled, or loaded from the cache, on its own.)
     """
     forward_states, forward_info, _ = forward
     backward_states, backward_info, _ = backward
-    while forward_info[_STATUS] == _LIVE or backward_info[_STATUS] == _LIVE:
+    while search and (forward_info[_STATUS] == _LIVE or backward_info[_STATUS] == _LIVE):
         if forward_info[_STATUS] == _LIVE and (
                 backward_info[_STATUS] != _LIVE
                 or forward_states[2, forward_info[_COUNT] - 1]
