@@ -32,8 +32,9 @@ import numpy as np
 
 from .arc_scan import (
     _ACCEL_SQUARED, _advance, _ADVANCED, _arc_table, _backwards, _bisect_right,
-    _CELL, _COUNT, _jerk_range, _LIVE, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min, _Scanner,
-    _speed_at, _SPEED_TARGET, _state, _STATUS, _STOPPED, _table_at, _TWO)
+    _CELL, _COUNT, _jerk_range, _LIVE, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min,
+    _reversed_rows, _rows, _Scanner, _speed_at, _SPEED_TARGET, _state, _STATUS, _STOPPED,
+    _table_at, _time_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
@@ -425,47 +426,10 @@ class _ArcPlanner:
         return solved
 
     def _join(self, forward, backward):
-        """
-        Return the rows forward scan -> one constant-jerk piece -> backward scan, or None.
-
-        The piece starts at time x of the forward scan, ends at time y of the
-        backward one and has jerk j: s, s', s'' must match at both ends,
-        three equations in x, y and the piece's duration (see
-        :meth:`_solve_join`). Where both scans cruise at the same speed, they
-        are simply switched.
-        """
-        length = self.length
-        index, cruising = _crossing(forward.states, forward.count, backward.states,
-                                    backward.count, length)
-        if index < 0:
-            return None
-        x_c, s_c, v_c = forward.states[:3, index].tolist()
-        if cruising:
-            y = backward.time_at(length - s_c)
-            return forward.rows(x_c) + backward.reversed_rows(y, length)
-        y_c = backward.time_at(length - s_c)
-        a_f = forward.state(x_c)[2]
-        a_b = -backward.state(y_c)[2]
-        table, constants = self.forward.table, self.forward.constants
-        found, lowest, highest = _jerk_range(table, constants, s_c, v_c, a_f)
-        if not found:
-            return None
-        jerk = 0.99 * (lowest if a_b < a_f else highest)
-        for _ in range(5):
-            solved, x, y, duration = _solve_join(
-                (forward.states, forward.count, backward.states, backward.count, length, jerk),
-                x_c, y_c)
-            if not solved:
-                return None
-            legal, worst = _piece_check(table, constants, *forward.state(x), duration, jerk)
-            if not legal:
-                return None
-            if worst == jerk:
-                s, v, a = forward.state(x)
-                return (forward.rows(x) + [(duration, s, v, a, jerk)]
-                        + backward.reversed_rows(y, length))
-            jerk = 0.99 * worst
-        return None
+        """Return the rows forward scan -> one piece -> backward scan (see :func:`_join`)."""
+        joined, rows = _join(self.forward.parts(), forward.parts(), backward.parts(),
+                             self.length)
+        return rows.tolist() if joined else None
 
     def fallback(self, v_in, v_out):
         """
@@ -604,6 +568,69 @@ def _scan_both(forward_scanner, backward_scanner, forward, backward, length, sea
         if crossed:
             break
     return _add_room(forward_scanner, backward_scanner, forward, backward, room)
+
+
+@kernel
+def _join(scanner, forward, backward, length):
+    """
+    Return (joined, rows): forward scan -> one constant-jerk piece -> backward scan.
+
+    The piece starts at time x of the forward scan, ends at time y of the
+    backward one and has jerk j: s, s', s'' must match at both ends, three
+    equations in x, y and the piece's duration (see :func:`_solve_join`),
+    with the largest jerk the piece keeps legal (:func:`_piece_check`).
+    Where both scans cruise at the same speed, they are simply switched.
+    ``rows``, shape (pieces, 5), as :func:`~ellipath_ros.core.arc_scan._rows`
+    gives them (none if not joined); ``scanner`` is the forward one.
+    """
+    table, constants = scanner[0], scanner[1]
+    forward_states, forward_count = forward[0], forward[1][_COUNT]
+    backward_states, backward_count = backward[0], backward[1][_COUNT]
+    none = np.empty((0, 5))
+    index, cruising = _crossing(forward_states, forward_count, backward_states,
+                                backward_count, length)
+    if index < 0:
+        return False, none
+    x_c, s_c = forward_states[0, index], forward_states[1, index]
+    y_c = _time_at(backward_states, backward_count, length - s_c)
+    if cruising:
+        return True, _joined_rows(_rows(forward_states, forward_count, x_c), none,
+                                  _reversed_rows(backward_states, backward_count, y_c, length))
+    a_f = _state(forward_states, forward_count, x_c)[2]
+    a_b = -_state(backward_states, backward_count, y_c)[2]
+    found, lowest, highest = _jerk_range(table, constants, s_c, forward_states[2, index], a_f)
+    if not found:
+        return False, none
+    jerk = 0.99 * (lowest if a_b < a_f else highest)
+    for _ in range(5):
+        solved, x, y, duration = _solve_join(
+            (forward_states, forward_count, backward_states, backward_count, length, jerk),
+            x_c, y_c)
+        if not solved:
+            return False, none
+        s, v, a = _state(forward_states, forward_count, x)
+        legal, worst = _piece_check(table, constants, s, v, a, duration, jerk)
+        if not legal:
+            return False, none
+        if worst == jerk:
+            piece = np.empty((1, 5))
+            piece[0, 0], piece[0, 1], piece[0, 2], piece[0, 3], piece[0, 4] = (
+                duration, s, v, a, jerk)
+            return True, _joined_rows(
+                _rows(forward_states, forward_count, x), piece,
+                _reversed_rows(backward_states, backward_count, y, length))
+        jerk = 0.99 * worst
+    return False, none
+
+
+@kernel
+def _joined_rows(head, middle, tail):
+    """Return the rows (pieces, 5) of ``head``, ``middle`` and ``tail`` one after the other."""
+    rows = np.empty((head.shape[0] + middle.shape[0] + tail.shape[0], 5))
+    rows[:head.shape[0]] = head
+    rows[head.shape[0]:head.shape[0] + middle.shape[0]] = middle
+    rows[head.shape[0] + middle.shape[0]:] = tail
+    return rows
 
 
 @kernel
