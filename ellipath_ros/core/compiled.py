@@ -37,13 +37,20 @@ import numba
 
 __all__ = ['kernel', 'warm_up']
 
-# The requests that warm_up plans (start, pick, place [m]; the default robot's workspace):
-# the paper's example, once per join and per profile, so that every kernel a plan can call is
-# called once with the argument types it always gets.
-_WARM_UP_REQUEST = ((0.0, 0.0, -0.8), (0.0, 0.0, -0.8), (0.3, 0.0, -0.75))
-_WARM_UP_VARIANTS = ({'join': 'g2', 'profile': 'time_optimal'},
-                     {'join': 'paper', 'profile': 'time_optimal'},
-                     {'join': 'paper', 'profile': 'curvature'})
+# The requests that warm_up plans ((start, pick, place) [m] in the default robot's workspace,
+# and the settings changed), so that every kernel a plan calls from Python is called once with
+# the argument types it always gets: the paper's example once per join and per profile, and a
+# request with a leg whose forward scan alone reaches T2 (its rows are read from Python).
+_WARM_UP_REQUESTS = (
+    (((0.0, 0.0, -0.8), (0.0, 0.0, -0.8), (0.3, 0.0, -0.75)),
+     {'join': 'g2', 'profile': 'time_optimal'}),
+    (((0.0, 0.0, -0.8), (0.0, 0.0, -0.8), (0.3, 0.0, -0.75)),
+     {'join': 'paper', 'profile': 'time_optimal'}),
+    (((0.0, 0.0, -0.8), (0.0, 0.0, -0.8), (0.3, 0.0, -0.75)),
+     {'join': 'paper', 'profile': 'curvature'}),
+    (((0.0894, 0.1282, -0.6521), (-0.2907, 0.1369, -0.9257), (-0.2663, -0.1060, -0.7932)),
+     {'join': 'paper', 'profile': 'time_optimal'}),
+)
 # Holds True once warm_up has run in this process.
 _WARM = []
 
@@ -71,10 +78,9 @@ def warm_up():
     Compile, or load from numba's cache, every kernel of the planning core before it is needed.
 
     A kernel compiles on its first call (seconds, or some 0.1 s from the cache): the node calls
-    this at start-up so that its first request does not pay for it. It plans the paper's
-    example with each join and each profile on the default configuration (the kernels'
-    argument types do not depend on it, and a node's own robot or workspace might not reach
-    the example).
+    this at start-up so that its first request does not pay for it. It plans a few requests
+    (``_WARM_UP_REQUESTS``) on the default configuration (the kernels' argument types do not
+    depend on it, and a node's own robot or workspace might not reach them).
 
     Returns
     -------
@@ -89,8 +95,7 @@ def warm_up():
         return 0.0
     started = time.perf_counter()
     config = planner.PlannerConfig()
-    start, pick, place = _WARM_UP_REQUEST
-    for variant in _WARM_UP_VARIANTS:
-        planner.plan_cycle(start, pick, place, dataclasses.replace(config, **variant))
+    for (start, pick, place), settings in _WARM_UP_REQUESTS:
+        planner.plan_cycle(start, pick, place, dataclasses.replace(config, **settings))
     _WARM.append(True)
     return time.perf_counter() - started
