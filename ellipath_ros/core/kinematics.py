@@ -363,11 +363,17 @@ def _forward(q, geometry, name, strict=True):
     q = np.ascontiguousarray(q, dtype=float)
     points = np.empty(q.shape)
     status = np.empty(q.shape[0], dtype=np.int8)
-    _forward_rows(q, _RADIAL_X, _RADIAL_Y, geometry.base_radius - geometry.effector_radius,
-                  geometry.upper_arm, geometry.forearm ** 2, points, status)
+    _forward_rows(q, *_kernel_geometry(geometry)[:5], points, status)
     if strict:
         _raise_unassembled(q, status, name)
     return points
+
+
+def _kernel_geometry(geometry):
+    """Return the dimensions the compiled rows take, in :func:`_tcp_row`'s order."""
+    return (_RADIAL_X, _RADIAL_Y, geometry.base_radius - geometry.effector_radius,
+            geometry.upper_arm, geometry.forearm ** 2,
+            _SINGULARITY_TOLERANCE * geometry.forearm ** 3)
 
 
 def _raise_unassembled(q, status, name):
@@ -658,10 +664,8 @@ def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
     rates = [np.ascontiguousarray(value, dtype=float) for value in (qdot, qddot, qdddot)]
     points, velocity, acceleration, jerk = (np.empty(q.shape) for _ in range(4))
     status = np.empty(q.shape[0], dtype=np.int8)
-    _tcp_rows(q, *rates, _RADIAL_X, _RADIAL_Y, geometry.base_radius - geometry.effector_radius,
-              geometry.upper_arm, geometry.forearm ** 2,
-              _SINGULARITY_TOLERANCE * geometry.forearm ** 3, points, velocity, acceleration,
-              jerk, status)
+    _tcp_rows(q, *rates, *_kernel_geometry(geometry), points, velocity, acceleration, jerk,
+              status)
     if strict:
         _raise_unassembled(q, status, name)
         if (status == _COPLANAR).any():
@@ -680,8 +684,8 @@ _ASSEMBLED, _COLLINEAR, _APART, _ABOVE, _COPLANAR = range(5)
 
 
 @kernel
-def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, point):
-    """Write the TCP of joint angles (q0, q1, q2) into ``point`` (3,); return its status."""
+def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, points, row):
+    """Write the TCP of joint angles (q0, q1, q2) into ``points[row]``; return its status."""
     radial0 = offset + upper * math.cos(q0)
     radial1 = offset + upper * math.cos(q1)
     radial2 = offset + upper * math.cos(q2)
@@ -706,14 +710,14 @@ def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, point):
     down = math.sqrt(0.0 if height_sq < 0.0 else height_sq) / math.sqrt(safe_sq)
     if nz < 0.0:
         down = -down
-    point[0] = cx2 + tx - down * nx
-    point[1] = cy2 + ty - down * ny
-    point[2] = height2 + tz - down * nz
+    points[row, 0] = cx2 + tx - down * nx
+    points[row, 1] = cy2 + ty - down * ny
+    points[row, 2] = height2 + tz - down * nz
     if collinear:
         return _COLLINEAR
     if height_sq < 0.0:
         return _APART
-    if point[2] >= 0.0:
+    if points[row, 2] >= 0.0:
         return _ABOVE
     return _ASSEMBLED
 
@@ -723,7 +727,7 @@ def _forward_rows(q, rx, ry, offset, upper, forearm_sq, points, status):
     """:func:`_forward_row` of every row of ``q`` (N, 3); unassembled rows get NaN."""
     for row in range(q.shape[0]):
         status[row] = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper,
-                                   forearm_sq, points[row])
+                                   forearm_sq, points, row)
         if status[row] != _ASSEMBLED:
             points[row, :] = np.nan
 
@@ -737,79 +741,90 @@ def _tcp_rows(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplana
     A row that cannot be assembled is NaN throughout; a coplanar one (``|det A|``
     below ``coplanar``) has NaN derivatives, as ``1 / NaN`` gives in the vectorised form.
     """
-    s = np.empty((3, 3))  # s[axis, arm]
-    b = np.empty((3, 3))
-    c = np.empty((3, 3))
-    columns = np.empty((3, 3))  # columns[k, axis]
-    rate = np.empty((3, 3))
-    rhs = np.empty(3)
-    accel = np.empty(3)
+    scratch = (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
+               np.empty((3, 3)), np.empty(3), np.empty(3))
     for row in range(q.shape[0]):
-        state = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper,
-                             forearm_sq, points[row])
-        if state != _ASSEMBLED:
-            points[row, :] = np.nan
-        px, py, pz = points[row, 0], points[row, 1], points[row, 2]
-        for arm in range(3):
-            cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
-            reach = -offset - upper * cos_q
-            upper_sin, upper_cos = upper * sin_q, upper * cos_q
-            s[0, arm] = px + reach * rx[arm]
-            s[1, arm] = py + reach * ry[arm]
-            s[2, arm] = pz + upper_sin
-            b[0, arm] = -upper_sin * rx[arm]
-            b[1, arm] = -upper_sin * ry[arm]
-            b[2, arm] = -upper_cos
-            c[0, arm] = -upper_cos * rx[arm]
-            c[1, arm] = -upper_cos * ry[arm]
-            c[2, arm] = upper_sin
-        for k in range(3):
-            first, second = (k + 1) % 3, (k + 2) % 3
-            x, y, z = s[0, first], s[1, first], s[2, first]
-            u, v, w = s[0, second], s[1, second], s[2, second]
-            columns[k, 0] = y * w - z * v
-            columns[k, 1] = z * u - x * w
-            columns[k, 2] = x * v - y * u
-        determinant = 0.0 + s[0, 0] * columns[0, 0] + s[1, 0] * columns[0, 1] + (
-            s[2, 0] * columns[0, 2])
-        singular = abs(determinant) < coplanar
-        if singular and state == _ASSEMBLED:
-            state = _COPLANAR
-        status[row] = state
-        inverse_det = 1.0 / (np.nan if singular else determinant)
-        for arm in range(3):
-            s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-            rhs[arm] = s_b * qdot[row, arm]
-        _solve(columns, rhs, inverse_det, velocity[row])
-        for arm in range(3):
-            for axis in range(3):
-                rate[axis, arm] = velocity[row, axis] - b[axis, arm] * qdot[row, arm]
-            rate_sq = (rate[0, arm] * rate[0, arm] + rate[1, arm] * rate[1, arm]
-                       + rate[2, arm] * rate[2, arm])
-            s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-            s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-            rhs[arm] = s_c * qdot[row, arm] * qdot[row, arm] + s_b * qddot[row, arm] - rate_sq
-        _solve(columns, rhs, inverse_det, acceleration[row])
-        for arm in range(3):
-            w_dot, w_ddot = qdot[row, arm], qddot[row, arm]
-            for axis in range(3):
-                accel[axis] = (acceleration[row, axis] - c[axis, arm] * w_dot * w_dot
-                               - b[axis, arm] * w_ddot)
-            rate_accel = (rate[0, arm] * accel[0] + rate[1, arm] * accel[1]
-                          + rate[2, arm] * accel[2])
-            s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-            s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-            rhs[arm] = (s_b * (qdddot[row, arm] - w_dot ** 3.0) + 3.0 * s_c * w_dot * w_ddot
-                        - 3.0 * rate_accel)
-        _solve(columns, rhs, inverse_det, jerk[row])
+        status[row] = _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq,
+                               coplanar, points, velocity, acceleration, jerk,
+                               scratch)
 
 
 @kernel
-def _solve(columns, rhs, inverse_det, out):
-    """Write A^-1 rhs (``columns`` of A^-1 det A, ``inverse_det`` = 1 / det A) into ``out``."""
+def _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq, coplanar, points,
+             velocity, acceleration, jerk, scratch):
+    """
+    :func:`tcp_derivatives` of row ``row`` of the (N, 3) arrays; return its status.
+
+    ``scratch`` holds work arrays: the forearm vectors s, the elbow derivatives b and c
+    (``[axis, arm]``), the columns of ``A^-1 det A`` (``[k, axis]``), the forearm rates
+    (3, 3) each, a right-hand side and a forearm acceleration (3,).
+    """
+    s, b, c, columns, rate, rhs, accel = scratch
+    state = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper, forearm_sq,
+                         points, row)
+    if state != _ASSEMBLED:
+        points[row, :] = np.nan
+    px, py, pz = points[row, 0], points[row, 1], points[row, 2]
+    for arm in range(3):
+        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+        reach = -offset - upper * cos_q
+        upper_sin, upper_cos = upper * sin_q, upper * cos_q
+        s[0, arm] = px + reach * rx[arm]
+        s[1, arm] = py + reach * ry[arm]
+        s[2, arm] = pz + upper_sin
+        b[0, arm] = -upper_sin * rx[arm]
+        b[1, arm] = -upper_sin * ry[arm]
+        b[2, arm] = -upper_cos
+        c[0, arm] = -upper_cos * rx[arm]
+        c[1, arm] = -upper_cos * ry[arm]
+        c[2, arm] = upper_sin
+    for k in range(3):
+        first, second = (k + 1) % 3, (k + 2) % 3
+        x, y, z = s[0, first], s[1, first], s[2, first]
+        u, v, w = s[0, second], s[1, second], s[2, second]
+        columns[k, 0] = y * w - z * v
+        columns[k, 1] = z * u - x * w
+        columns[k, 2] = x * v - y * u
+    determinant = 0.0 + s[0, 0] * columns[0, 0] + s[1, 0] * columns[0, 1] + (
+        s[2, 0] * columns[0, 2])
+    singular = abs(determinant) < coplanar
+    if singular and state == _ASSEMBLED:
+        state = _COPLANAR
+    inverse_det = 1.0 / (np.nan if singular else determinant)
+    for arm in range(3):
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        rhs[arm] = s_b * qdot[row, arm]
+    _solve(columns, rhs, inverse_det, velocity, row)
+    for arm in range(3):
+        for axis in range(3):
+            rate[axis, arm] = velocity[row, axis] - b[axis, arm] * qdot[row, arm]
+        rate_sq = (rate[0, arm] * rate[0, arm] + rate[1, arm] * rate[1, arm]
+                   + rate[2, arm] * rate[2, arm])
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
+        rhs[arm] = s_c * qdot[row, arm] * qdot[row, arm] + s_b * qddot[row, arm] - rate_sq
+    _solve(columns, rhs, inverse_det, acceleration, row)
+    for arm in range(3):
+        w_dot, w_ddot = qdot[row, arm], qddot[row, arm]
+        for axis in range(3):
+            accel[axis] = (acceleration[row, axis] - c[axis, arm] * w_dot * w_dot
+                           - b[axis, arm] * w_ddot)
+        rate_accel = (rate[0, arm] * accel[0] + rate[1, arm] * accel[1]
+                      + rate[2, arm] * accel[2])
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
+        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot ** 3.0) + 3.0 * s_c * w_dot * w_ddot
+                    - 3.0 * rate_accel)
+    _solve(columns, rhs, inverse_det, jerk, row)
+    return state
+
+
+@kernel
+def _solve(columns, rhs, inverse_det, out, row):
+    """Write A^-1 rhs (``columns`` of A^-1 det A, ``inverse_det`` = 1 / det A) to out[row]."""
     for axis in range(3):
-        out[axis] = (rhs[0] * columns[0, axis] + rhs[1] * columns[1, axis]
-                     + rhs[2] * columns[2, axis]) * inverse_det
+        out[row, axis] = (rhs[0] * columns[0, axis] + rhs[1] * columns[1, axis]
+                          + rhs[2] * columns[2, axis]) * inverse_det
 
 
 @kernel
