@@ -424,6 +424,10 @@ def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=N
     has_acceleration = a0 is not None and a1 is not None
     if has_acceleration and not has_velocity:
         return coefficients
+    if has_acceleration:
+        _quintic_rows(h[:, 0], q0, q1, *(np.asarray(value, dtype=float)
+                                         for value in (v0, v1, a0, a1)), coefficients)
+        return coefficients
     dq = q1 - q0
     coefficients[:, 0] = q0
     if not has_velocity:
@@ -432,19 +436,30 @@ def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=N
     v0, v1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
     h2 = h * h
     coefficients[:, 1] = v0
-    if not has_acceleration:
-        coefficients[:, 2] = (3.0 * dq - (2.0 * v0 + v1) * h) / h2
-        coefficients[:, 3] = (-2.0 * dq + (v0 + v1) * h) / (h2 * h)
-        return coefficients
-    a0, a1 = np.asarray(a0, dtype=float), np.asarray(a1, dtype=float)
-    coefficients[:, 2] = 0.5 * a0
-    coefficients[:, 3] = (20.0 * dq - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (
-        2.0 * h2 * h)
-    coefficients[:, 4] = (-30.0 * dq + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1)
-                          * h2) / (2.0 * h2 * h2)
-    coefficients[:, 5] = (12.0 * dq - 6.0 * (v1 + v0) * h - (a0 - a1) * h2) / (
-        2.0 * h2 * h2 * h)
+    coefficients[:, 2] = (3.0 * dq - (2.0 * v0 + v1) * h) / h2
+    coefficients[:, 3] = (-2.0 * dq + (v0 + v1) * h) / (h2 * h)
     return coefficients
+
+
+@kernel
+def _quintic_rows(h, q0, q1, v0, v1, a0, a1, coefficients):
+    """Fill the quintic ``coefficients`` (S, 6, 3) of :func:`interpolation_coefficients`."""
+    for row in range(h.size):
+        length = h[row]
+        h2 = length * length
+        for j in range(q0.shape[1]):
+            dq = q1[row, j] - q0[row, j]
+            start_v, end_v = v0[row, j], v1[row, j]
+            start_a, end_a = a0[row, j], a1[row, j]
+            coefficients[row, 0, j] = q0[row, j]
+            coefficients[row, 1, j] = start_v
+            coefficients[row, 2, j] = 0.5 * start_a
+            coefficients[row, 3, j] = (20.0 * dq - (8.0 * end_v + 12.0 * start_v) * length
+                                       - (3.0 * start_a - end_a) * h2) / (2.0 * h2 * length)
+            coefficients[row, 4, j] = (-30.0 * dq + (14.0 * end_v + 16.0 * start_v) * length
+                                       + (3.0 * start_a - 2.0 * end_a) * h2) / (2.0 * h2 * h2)
+            coefficients[row, 5, j] = (12.0 * dq - 6.0 * (end_v + start_v) * length
+                                       - (start_a - end_a) * h2) / (2.0 * h2 * h2 * length)
 
 
 def evaluate_polynomials(coefficients, offset, derivatives=True):
