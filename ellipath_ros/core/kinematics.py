@@ -587,15 +587,35 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
     q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
     failed = _joint_rows(
         np.ascontiguousarray(points), np.ascontiguousarray(velocities),
-        np.ascontiguousarray(accelerations), _RADIAL_X, _RADIAL_Y, _TANGENT_X, _TANGENT_Y,
-        geometry.base_radius - geometry.effector_radius, geometry.upper_arm, geometry.forearm,
-        geometry.joint_min, geometry.joint_max,
-        _SINGULARITY_TOLERANCE * (geometry.upper_arm * geometry.forearm), q, qdot, qddot)
+        np.ascontiguousarray(accelerations), *_joint_geometry(geometry), q, qdot, qddot)
     if failed >= 0:
         _raise_joint_failure(points, geometry, name)
     if single:
         return q[0], qdot[0], qddot[0]
     return q, qdot, qddot
+
+
+def assembled_joint_rates(points, velocities, geometry):
+    """
+    Return :func:`joint_motion`'s ``(q, q_dot)`` of finite (N, 3) rows, or None if one fails.
+
+    Nothing is raised: a row out of reach, beyond a joint limit or at an IK
+    singularity gives None, for the caller to name it its own way.
+    """
+    points = np.ascontiguousarray(points, dtype=float)
+    q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
+    failed = _joint_rows(
+        points, np.ascontiguousarray(velocities, dtype=float), np.zeros(points.shape),
+        *_joint_geometry(geometry), q, qdot, qddot)
+    return None if failed >= 0 else (q, qdot)
+
+
+def _joint_geometry(geometry):
+    """Return the arm directions and dimensions :func:`_joint_rows` takes, in its order."""
+    return (_RADIAL_X, _RADIAL_Y, _TANGENT_X, _TANGENT_Y,
+            geometry.base_radius - geometry.effector_radius, geometry.upper_arm,
+            geometry.forearm, geometry.joint_min, geometry.joint_max,
+            _SINGULARITY_TOLERANCE * (geometry.upper_arm * geometry.forearm))
 
 
 def _raise_joint_failure(points, geometry, name):
