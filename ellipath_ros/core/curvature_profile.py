@@ -37,10 +37,12 @@ next to nothing, while a step-limited Delta t would slow the whole arc.
 """
 
 from dataclasses import dataclass, field
+import functools
 import math
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
 from .geometry import EllipticArc, radius_of_curvature_derivatives
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
@@ -55,6 +57,9 @@ _MAX_NODES = 20000
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _ODE_PANELS = 256
 _BASELINE_SAMPLES = 4001
+# Near the tightest points, bounds of the states' interpolation panels at this share of
+# their distance to the nearest pole of 1/sigma (see _CurvatureArcLaw._hermite_table).
+_POLE_STEP = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +71,13 @@ class _CurvatureArcLaw:
     s' = K sigma**4 / (a b), s'' = -4 K**2 sigma**6 sigma_1 / (a b)**2,
     s''' = 4 K**3 sigma**8 (6 sigma_1**2 + sigma sigma_2) / (a b)**3 (sigma_i: derivatives
     by theta), and t(theta) = (a b / K) * integral of sigma**-3 from theta to theta_start.
+
+    The time table holds t at ``_ODE_PANELS`` even steps of theta (Gauss-Legendre
+    quadrature per panel); the duration is its total. For the states it also holds, exact
+    at those panel bounds, theta' = -K rho, theta'' = K**2 rho rho_1, s, s' and s'';
+    theta(t) and s(t) are quintic Hermite interpolants between them (no quadrature and no
+    iteration per sample; the tests bound the error against the quadrature), and s', s''
+    and s''' follow from theta(t) in closed form.
     """
 
     arc: EllipticArc
@@ -93,30 +105,131 @@ class _CurvatureArcLaw:
         ab = self.arc.a * self.arc.b
         return np.abs(half) * ab / self.rate * (self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS)
 
+    @functools.cached_property
+    def _hermite_table(self):
+        """
+        Return the panel bounds t (M,) and there theta, s and their first 3 derivatives (8, M).
+
+        The bounds are those of the time table plus, on a thin ellipse, more near its
+        tightest points theta = k pi: 1/sigma has poles at k pi +- i atanh(b/a), and a
+        polynomial is accurate over a panel only if the panel is narrow beside its
+        distance to the nearest pole. The time at each added bound is that of the time
+        table's panel it lies in plus the quadrature from that panel's start (the very
+        function the duration sums).
+        """
+        arc, rate = self.arc, self.rate
+        a, b = arc.a, arc.b
+        theta, times = self._edges, self._times
+        if a > b:
+            # sigma**2 = 0 at theta = k pi +- i beta: near k pi, panels as wide as a share
+            # of their distance to that pole, up to where the even steps are narrower.
+            beta = math.atanh(b / a)
+            widest = math.acosh(max(math.pi / (_ODE_PANELS * _POLE_STEP * beta), 1.0))
+            offsets = beta * np.sinh(np.arange(0.0, widest, _POLE_STEP))
+            turns = np.arange(math.floor(self.theta_end / math.pi),
+                              math.ceil(self.theta_start / math.pi) + 1)[:, None] * math.pi
+            crossings = np.concatenate(((turns + offsets).ravel(), (turns - offsets).ravel()))
+            crossings = crossings[(crossings < self.theta_start) & (crossings > self.theta_end)]
+            panel = np.clip(np.searchsorted(-theta, -crossings, side='right') - 1, 0,
+                            _ODE_PANELS - 1)
+            order = np.argsort(-np.concatenate((theta, crossings)), kind='stable')
+            times = np.concatenate((times, times[panel] + self._elapsed(theta[panel], crossings)))[
+                order]
+            theta = np.concatenate((theta, crossings))[order]
+            # A crossing next to a bound may round to before it: keep the times sorted.
+            times = np.maximum.accumulate(times)
+        table = np.empty((8, theta.size))
+        table[0] = theta
+        table[4] = self.s_offset + arc.s_from_t(arc.t_from_theta(theta))
+        _rule_table(theta, a, b, rate, table)
+        return times, table
+
+    def _evaluate(self, t):
+        """Return the rows (theta, s, s', s'', s''') at times ``t`` (N,), shape (5, N)."""
+        t = np.ascontiguousarray(t, dtype=float)
+        out = np.empty((5, t.size))
+        _law_states(t, *self._hermite_table, self.arc.a, self.arc.b, self.rate, out)
+        return out
+
     def theta(self, t):
-        """Return theta at times ``t`` (N,) from the start of this law (Newton on the table)."""
-        t = np.clip(t, 0.0, self.duration)
-        panel = np.clip(np.searchsorted(self._times, t, side='right') - 1, 0, _ODE_PANELS - 1)
-        theta_0, theta_1 = self._edges[panel], self._edges[panel + 1]
-        t_0, t_1 = self._times[panel], self._times[panel + 1]
-        theta = theta_0 + (theta_1 - theta_0) * (t - t_0) / np.maximum(t_1 - t_0, 1e-300)
-        ab = self.arc.a * self.arc.b
-        for _ in range(4):
-            residual = t_0 + self._elapsed(theta_0, theta) - t
-            # dt/dtheta = -a b / (K sigma**3)
-            theta = np.clip(theta + residual * self.rate * self.arc.sigma(theta)[0] ** 3 / ab,
-                            theta_1, theta_0)
-        return theta
+        """Return theta at times ``t`` (N,) from the start of this law."""
+        return self._evaluate(t)[0]
 
     def state(self, t):
-        theta = self.theta(t)
-        rate, ab = self.rate, self.arc.a * self.arc.b
-        sigma, sigma_1, sigma_2 = self.arc.sigma(theta)
-        s = self.s_offset + self.arc.s_from_t(self.arc.t_from_theta(theta))
-        speed = rate * sigma ** 4 / ab
-        accel = -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2
-        jerk = 4.0 * rate ** 3 * sigma ** 8 * (6.0 * sigma_1 ** 2 + sigma * sigma_2) / ab ** 3
+        """Return (s, s', s'', s''') at times ``t`` (N,) from the start of this law."""
+        _, s, speed, accel, jerk = self._evaluate(t)
         return s, speed, accel, jerk
+
+
+@kernel
+def _rule_rates(theta, a, b, rate):
+    """Return theta', theta'', theta''', s', s'', s''' of the rule at ``theta`` (see the law)."""
+    sin_theta, cos_theta = math.sin(theta), math.cos(theta)
+    spread, ab = a * a - b * b, a * b
+    # sigma and its derivatives as in geometry.ellipse_sigma; rho = sigma**3 / (a b).
+    sigma = math.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma_1 = spread * sin_theta * cos_theta / sigma
+    sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
+    rho = sigma ** 3 / ab
+    rho_1 = 3.0 * sigma ** 2 * sigma_1 / ab
+    rho_2 = (6.0 * sigma * sigma_1 ** 2 + 3.0 * sigma ** 2 * sigma_2) / ab
+    return (-rate * rho, rate ** 2 * rho * rho_1, -rate ** 3 * rho * (rho_1 ** 2 + rho * rho_2),
+            rate * sigma ** 4 / ab, -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2,
+            4.0 * rate ** 3 * sigma ** 8 * (6.0 * sigma_1 ** 2 + sigma * sigma_2) / ab ** 3)
+
+
+@kernel
+def _rule_table(theta, a, b, rate, out):
+    """Fill rows 1-3 and 5-7 of ``out`` (8, M) with the rates of :func:`_rule_rates`."""
+    for index in range(theta.size):
+        (out[1, index], out[2, index], out[3, index], out[5, index], out[6, index],
+         out[7, index]) = _rule_rates(theta[index], a, b, rate)
+
+
+@kernel
+def _septic(x, start, end, slope_0, slope_1, curve_0, curve_1, third_0, third_1):
+    """Return at ``x`` the degree-7 polynomial with the 4 given derivatives at x = 0 and 1."""
+    jump = end - start
+    c4 = (35.0 * jump - 20.0 * slope_0 - 15.0 * slope_1 - 5.0 * curve_0 + 2.5 * curve_1
+          - third_0 * (2.0 / 3.0) - third_1 / 6.0)
+    c5 = (-84.0 * jump + 45.0 * slope_0 + 39.0 * slope_1 + 10.0 * curve_0 - 7.0 * curve_1
+          + third_0 + 0.5 * third_1)
+    c6 = (70.0 * jump - 36.0 * slope_0 - 34.0 * slope_1 - 7.5 * curve_0 + 6.5 * curve_1
+          - third_0 * (2.0 / 3.0) - 0.5 * third_1)
+    c7 = (-20.0 * jump + 10.0 * (slope_0 + slope_1) + 2.0 * (curve_0 - curve_1)
+          + (third_0 + third_1) / 6.0)
+    return start + x * (slope_0 + x * (0.5 * curve_0 + x * (third_0 / 6.0 + x * (
+        c4 + x * (c5 + x * (c6 + x * c7))))))
+
+
+@kernel
+def _law_states(t, times, table, a, b, rate, out):
+    """
+    Fill ``out`` (5, N) with theta, s, s', s'', s''' of the law at times ``t`` (N,).
+
+    ``times`` (M,) are the panel bounds and ``table`` (8, M) the rows of
+    ``_CurvatureArcLaw._hermite_table``. Sorted times (the usual case) find their
+    panel by a step from the previous one, others by bisection.
+    """
+    last = times.size - 2
+    duration = times[last + 1]
+    panel = 0
+    for index in range(t.size):
+        now = min(max(t[index], 0.0), duration)
+        if now < times[panel] or (now >= times[panel + 1] and panel < last):
+            panel = min(max(np.searchsorted(times, now, side='right') - 1, 0), last)
+        after = panel + 1
+        width = max(times[after] - times[panel], 1e-300)
+        x = (now - times[panel]) / width
+        for row in (0, 4):
+            value = _septic(x, table[row, panel], table[row, after],
+                            table[row + 1, panel] * width, table[row + 1, after] * width,
+                            table[row + 2, panel] * width ** 2, table[row + 2, after] * width ** 2,
+                            table[row + 3, panel] * width ** 3, table[row + 3, after] * width ** 3)
+            bound_0, bound_1 = table[row, panel], table[row, after]
+            out[row // 4, index] = min(max(value, min(bound_0, bound_1)), max(bound_0, bound_1))
+        rates = _rule_rates(out[0, index], a, b, rate)
+        out[2, index], out[3, index], out[4, index] = rates[3], rates[4], rates[5]
 
 
 def curvature_nodes(arc, r=0.77):
