@@ -12,10 +12,11 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The curvature law's tabulated states against independent quadratures of its definition."""
+"""The curvature profile's compiled and tabulated parts against plain computations of the same."""
 
-from ellipath_ros.core.curvature_profile import _CurvatureArcLaw
-from ellipath_ros.core.geometry import EllipticArc
+from ellipath_ros.core.curvature_profile import (
+    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, curvature_nodes)
+from ellipath_ros.core.geometry import EllipticArc, plan_path, radius_of_curvature_derivatives
 import numpy as np
 import pytest
 
@@ -92,3 +93,71 @@ def test_order_of_the_times_does_not_change_the_states():
     order = np.argsort(t)
     for shuffled, ordered in zip(law.state(t), law.state(t[order])):
         assert np.array_equal(shuffled[order], ordered)
+
+
+def nodes_by_geometry(arc, r):
+    """Return the paper's Steps 3-8 as a plain loop over geometry's radius of curvature."""
+    theta, nodes = arc.theta_T1, [arc.theta_T1]
+    while theta > arc.theta_T2:
+        theta -= r * float(arc.radius_of_curvature(theta))
+        nodes.append(theta)
+    nodes[-1] = arc.theta_T2
+    return np.array(nodes)
+
+
+@pytest.mark.parametrize('r', [0.77, 0.05, 3.0])
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_compiled_node_list_is_the_plain_loop_bit_for_bit(l_, h, k, r):
+    arc = EllipticArc(l_, h, k)
+    assert np.array_equal(curvature_nodes(arc, r), nodes_by_geometry(arc, r))
+
+
+def peaks_by_geometry(arc, theta):
+    """Return |v|, |a|, |j| of the rule at K = 1 from geometry's functions, in NumPy."""
+    rho, rho_1, rho_2 = radius_of_curvature_derivatives(arc.a, arc.b, theta)
+    w1, w2, w3 = -rho, rho * rho_1, -rho * (rho_1 ** 2 + rho * rho_2)
+    p = arc.point(arc.t_from_theta(theta))
+    d1 = arc.derivative(arc.t_from_theta(theta))
+    velocity = d1 * w1[:, None]
+    accel = -p * (w1 ** 2)[:, None] + d1 * w2[:, None]
+    jerk = -d1 * (w1 ** 3)[:, None] - 3.0 * p * (w1 * w2)[:, None] + d1 * w3[:, None]
+    return [np.linalg.norm(value, axis=1) for value in (velocity, accel, jerk)]
+
+
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_compiled_peaks_are_numpys_bit_for_bit(l_, h, k):
+    """K (hence every duration) depends on these maxima: the kernel must not move them."""
+    arc = EllipticArc(l_, h, k)
+    theta = np.linspace(arc.theta_T1, arc.theta_T2, 1001)
+    found = _arc_cartesian_peaks(arc, theta)
+    for value, expected in zip(found[:3], peaks_by_geometry(arc, theta)):
+        assert np.array_equal(value, expected)
+    sigma, sigma_1, _ = arc.sigma(theta)
+    np.testing.assert_allclose(found[3], sigma, rtol=1e-15)
+    np.testing.assert_allclose(found[4], sigma_1, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize('cap_name', ['falling', 'dip', 'constant'])
+def test_speed_cap_rate_is_the_minimum_over_all_samples(cap_name):
+    """The shortlist by approximate arc length finds the exact minimum of cap(s) / speed."""
+    path = plan_path([0, 0, -0.8], [0.3, 0, -0.75])
+    arc = path.arc
+    c1 = path.segment_lengths[0]
+    caps = {'falling': lambda s: 3.0 - 4.0 * s,
+            'dip': lambda s: 1.0 + 50.0 * (s - c1 - 0.1234) ** 2,
+            'constant': lambda s: np.full_like(s, 2.0)}
+    theta = np.linspace(arc.theta_T1, arc.theta_T2, 4001)
+    speed, _, _, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
+    s = c1 + arc.s_from_t(arc.t_from_theta(theta))
+    expected = np.min(caps[cap_name](s) / speed)
+    found = _cap_rate(path, caps[cap_name], theta, speed, sigma, sigma_1)
+    assert found == pytest.approx(expected, rel=1e-14)
+
+
+def test_law_at_another_rate_keeps_the_time_table_bit_for_bit():
+    law = law_on(*ARCS[0], rate=1.0)
+    for rate in (0.37, 3.0):
+        reused = law.at_rate(rate, 0.01)
+        fresh = _CurvatureArcLaw(law.arc, rate, 0.01, law.theta_start, law.theta_end)
+        assert np.array_equal(reused._times, fresh._times)
+        assert reused.duration == pytest.approx(law.duration / rate, rel=1e-14)

@@ -44,7 +44,7 @@ import numpy as np
 
 from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
-from .geometry import EllipticArc, radius_of_curvature_derivatives
+from .geometry import EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _pieces_law, _Sequence, TimedMotion
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
@@ -60,6 +60,8 @@ _BASELINE_SAMPLES = 4001
 # Near the tightest points, bounds of the states' interpolation panels at this share of
 # their distance to the nearest pole of 1/sigma (see _CurvatureArcLaw._hermite_table).
 _POLE_STEP = 0.05
+# Samples whose speed-cap ratio is within this share of the smallest get their exact arc length.
+_CAP_SHORTLIST = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,14 +87,30 @@ class _CurvatureArcLaw:
     s_offset: float  # path length at theta_T1 [m]
     theta_start: float
     theta_end: float
+    # The time table's parts that do not depend on K: the panel bounds, |half width| * a b and
+    # the quadrature sums of sigma**-3 (from :meth:`at_rate`, else computed).
+    _quadrature: tuple = field(default=None, repr=False)
     _edges: np.ndarray = field(init=False, repr=False)
     _times: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
-        edges = np.linspace(self.theta_start, self.theta_end, _ODE_PANELS + 1)
+        if self._quadrature is None:
+            edges = np.linspace(self.theta_start, self.theta_end, _ODE_PANELS + 1)
+            # As _elapsed(edges[:-1], edges[1:]) computes it, with the division by K left out.
+            half = 0.5 * (edges[1:] - edges[:-1])
+            nodes = (0.5 * (edges[1:] + edges[:-1]))[..., None] + half[..., None] * _GL_NODES
+            object.__setattr__(self, '_quadrature', (
+                edges, np.abs(half) * (self.arc.a * self.arc.b),
+                self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS))
+        edges, scaled_half, sums = self._quadrature
         object.__setattr__(self, '_edges', edges)
         object.__setattr__(self, '_times', np.concatenate(
-            ([0.0], np.cumsum(self._elapsed(edges[:-1], edges[1:])))))
+            ([0.0], np.cumsum(scaled_half / self.rate * sums))))
+
+    def at_rate(self, rate, s_offset):
+        """Return the law on the same theta range at another K, reusing the quadrature."""
+        return _CurvatureArcLaw(self.arc, rate, s_offset, self.theta_start, self.theta_end,
+                                self._quadrature)
 
     @property
     def duration(self):
@@ -247,6 +265,11 @@ def curvature_nodes(arc, r=0.77):
         r <= 0, or so small that the list would exceed ``_MAX_NODES``.
 
     """
+    return _nodes_and_unit_law(arc, r)[0]
+
+
+def _nodes_and_unit_law(arc, r):
+    """Return :func:`curvature_nodes` and the law at K = 1 over the arc it estimates with."""
     r = require_range('r', r, 0.0, math.inf, low_open=True, unit='rad/m')
     # Node count ~ integral of dtheta / (r rho): refuse huge lists before building them.
     law = _CurvatureArcLaw(arc, 1.0, 0.0, arc.theta_T1, arc.theta_T2)
@@ -255,28 +278,113 @@ def curvature_nodes(arc, r=0.77):
         raise InvalidInputError(
             f'r: expected a value giving at most {_MAX_NODES} nodes (r >= '
             f'{law.duration / _MAX_NODES:.3g} rad/m for this arc), got {r!r} rad/m')
-    theta = arc.theta_T1
-    nodes = [theta]
-    while theta > arc.theta_T2:
-        theta -= r * float(arc.radius_of_curvature(theta))
-        nodes.append(theta)
+    # Room for the Euler steps' count (near the estimate); more if they take more.
+    nodes = np.empty(int(estimate * 1.5) + 16)
+    count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, nodes)
+    while count > nodes.size:
+        nodes = np.empty(2 * nodes.size)
+        count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, nodes)
+    nodes = nodes[:count]
     nodes[-1] = arc.theta_T2
-    return np.array(nodes)
+    return nodes, law
+
+
+@kernel
+def _node_steps(theta_start, theta_end, a, b, r, out):
+    """
+    Write the nodes theta_{i+1} = theta_i - r rho(theta_i) from theta_start past theta_end.
+
+    Returns their count, or more than ``out`` holds if it is too short (then the
+    list is incomplete). rho is computed as ``EllipticArc.radius_of_curvature``
+    computes it (libm's sin, cos and pow), so the nodes are those of that
+    function bit for bit.
+    """
+    ab = a * b
+    theta = theta_start
+    out[0] = theta
+    count = 1
+    while theta > theta_end:
+        if count == out.size:
+            return count + 1
+        sigma = math.sqrt(a * a * math.pow(math.sin(theta), 2.0)
+                          + b * b * math.pow(math.cos(theta), 2.0))
+        theta -= r * (math.pow(sigma, 3.0) / ab)
+        out[count] = theta
+        count += 1
+    return count
 
 
 def _arc_cartesian_peaks(arc, theta):
-    """Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), each (N,)."""
-    rho, rho_1, rho_2 = radius_of_curvature_derivatives(arc.a, arc.b, theta)
-    # theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1.
-    w1, w2, w3 = -rho, rho * rho_1, -rho * (rho_1 ** 2 + rho * rho_2)
-    p = arc.point(arc.t_from_theta(theta))
-    d1 = arc.derivative(arc.t_from_theta(theta))
-    # d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre).
-    velocity = d1 * w1[:, None]
-    accel = -p * (w1 ** 2)[:, None] + d1 * w2[:, None]
-    jerk = -d1 * (w1 ** 3)[:, None] - 3.0 * p * (w1 * w2)[:, None] + d1 * w3[:, None]
-    return (np.linalg.norm(velocity, axis=1), np.linalg.norm(accel, axis=1),
-            np.linalg.norm(jerk, axis=1))
+    """
+    Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), and sigma, sigma'.
+
+    Each (N,); computed as NumPy computes the same formulas (see :func:`_rule_norms`).
+    """
+    out = np.empty((5, theta.size))
+    _rule_norms(np.ascontiguousarray(theta, dtype=float), arc.a, arc.b, arc.l, arc.h, arc.k,
+                arc.theta_T2, out)
+    return out
+
+
+@kernel
+def _rule_norms(theta, a, b, l_, h, k, theta_t2, out):
+    """
+    Fill ``out`` (5, N) with |v|, |a|, |j| of the rule with K = 1, sigma and sigma' at ``theta``.
+
+    theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1;
+    d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre). The
+    operations are those of ``geometry.radius_of_curvature_derivatives``,
+    ``EllipticArc.point`` and ``derivative`` and ``numpy.linalg.norm``, in their
+    order, with libm's sin, cos and pow: the same numbers bit for bit.
+    """
+    spread, ab = a * a - b * b, a * b
+    for index in range(theta.size):
+        angle = theta[index]
+        sin_theta, cos_theta = math.sin(angle), math.cos(angle)
+        sigma = math.sqrt(a * a * math.pow(sin_theta, 2.0) + b * b * math.pow(cos_theta, 2.0))
+        sigma_1 = spread * sin_theta * cos_theta / sigma
+        sigma_2 = (spread * (math.pow(cos_theta, 2.0) - math.pow(sin_theta, 2.0))
+                   - math.pow(sigma_1, 2.0)) / sigma
+        rho = math.pow(sigma, 3.0) / ab
+        rho_1 = 3.0 * math.pow(sigma, 2.0) * sigma_1 / ab
+        rho_2 = (6.0 * sigma * math.pow(sigma_1, 2.0) + 3.0 * math.pow(sigma, 2.0) * sigma_2) / ab
+        w1, w2 = -rho, rho * rho_1
+        w3 = -rho * (math.pow(rho_1, 2.0) + rho * rho_2)
+        t = angle - theta_t2
+        sin_t, cos_t = math.sin(t), math.cos(t)
+        px, py = l_ * cos_t, h * cos_t + k * sin_t
+        dx, dy = -l_ * sin_t, -h * sin_t + k * cos_t
+        vx, vy = dx * w1, dy * w1
+        square, cube, product = math.pow(w1, 2.0), math.pow(w1, 3.0), w1 * w2
+        ax, ay = -px * square + dx * w2, -py * square + dy * w2
+        jx = -dx * cube - 3.0 * px * product + dx * w3
+        jy = -dy * cube - 3.0 * py * product + dy * w3
+        out[0, index] = math.sqrt(vx * vx + vy * vy)
+        out[1, index] = math.sqrt(ax * ax + ay * ay)
+        out[2, index] = math.sqrt(jx * jx + jy * jy)
+        out[3, index] = sigma
+        out[4, index] = sigma_1
+
+
+def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
+    """
+    Return the largest K the speed cap allows at the samples ``theta``: min cap(s) / speed.
+
+    The arc length of every sample by quadrature (``s_from_t``) would cost more than
+    the rest of the profile: the corrected trapezoid rule on the samples' own sigma
+    and sigma' (error ~h**4, far below 1e-9 m) shortlists the samples within
+    ``_CAP_SHORTLIST`` of the smallest ratio, and only those are computed exactly, so
+    the result is the exact minimum, the same number as over all samples.
+    """
+    arc = path.arc
+    c1 = path.segment_lengths[0]
+    step = theta[:-1] - theta[1:]
+    pieces = 0.5 * step * (sigma[:-1] + sigma[1:]) - step ** 2 / 12.0 * (sigma_1[:-1]
+                                                                         - sigma_1[1:])
+    ratio = _cap_values(speed_cap, c1 + np.concatenate(([0.0], np.cumsum(pieces)))) / speed
+    shortlist = np.flatnonzero(ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST))
+    s = c1 + arc.s_from_t(arc.t_from_theta(theta[shortlist]))
+    return float(np.min(_cap_values(speed_cap, s) / speed[shortlist]))
 
 
 def _curvature_state(arc, rate, theta):
@@ -292,24 +400,24 @@ def _curvature_motion(path, limits, r, speed_cap):
     if path.arc is None:
         return _straight_motion(path, limits, speed_cap, 'curvature')
     arc = path.arc
-    nodes = curvature_nodes(arc, r)
+    nodes, unit_law = _nodes_and_unit_law(arc, r)
     # The tightest point (theta = 0 mod pi) is sampled exactly.
     theta = np.linspace(arc.theta_T1, arc.theta_T2, _BASELINE_SAMPLES)
     theta = np.sort(np.append(theta, math.pi * math.ceil(arc.theta_T2 / math.pi)))[::-1]
-    speed, accel, jerk = _arc_cartesian_peaks(arc, theta)
+    speed, accel, jerk, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
     rate = min(limits.max_speed * _SPEED_MARGIN / speed.max(),
                math.sqrt(limits.max_accel * _ACCEL_MARGIN / accel.max()),
                (limits.max_jerk * _JERK_MARGIN / jerk.max()) ** (1.0 / 3.0))
     if speed_cap is not None:
-        s = path.segment_lengths[0] + arc.s_from_t(arc.t_from_theta(theta))
-        rate = min(rate, _SPEED_MARGIN * float(np.min(_cap_values(speed_cap, s) / speed)))
+        rate = min(rate, _SPEED_MARGIN * _cap_rate(path, speed_cap, theta, speed, sigma,
+                                                   sigma_1))
     # Step at T1/T2: s'**2 / rho_T <= max_accel_jump, s' = K u_T (same u at both ends). When
     # that would slow the whole arc down, the arc starts and ends at rest (ramps) instead.
     ramps = math.sqrt(limits.max_accel_jump * arc.end_radius) / speed[0] < rate
     # The entry and exit states scale with K: shrink it until the lines (or ramps) fit.
     groups = None
     for _ in range(40):
-        groups = _curvature_groups(path, limits, speed_cap, nodes, rate, ramps)
+        groups = _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law)
         if groups is not None:
             break
         rate *= 0.8
@@ -320,24 +428,26 @@ def _curvature_motion(path, limits, r, speed_cap):
     segments = np.array([sum(law.duration for law in group) for group in groups])
     v_t1 = v_t2 = 0.0
     if not ramps:
-        # Where a ramp starts (ends) the arc, s' = 0 there exactly.
+        # Where a ramp starts (ends) the arc, s' = 0 there exactly. Else the rule's speed at the
+        # law's bounds, in closed form.
         first_arc, last_arc = groups[1][0], groups[1][-1]
         if path.segment_lengths[0] > 0.0:
-            v_t1 = float(first_arc.state(np.zeros(1))[1][0])
+            v_t1 = _curvature_state(arc, rate, first_arc.theta_start)[1]
         if path.segment_lengths[2] > 0.0:
-            v_t2 = float(last_arc.state(np.array([last_arc.duration]))[1][0])
+            v_t2 = _curvature_state(arc, rate, last_arc.theta_end)[1]
     law = _Sequence(laws)
     return TimedMotion(path, 'curvature', law.duration, segments,
                        v_t1 ** 2 / arc.end_radius, v_t2 ** 2 / arc.end_radius,
                        int(nodes.size), law, node_period=r / rate)
 
 
-def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps):
+def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law):
     """
     Return (lift laws, arc laws, descent laws) for the rule at rate K, or None if none fit.
 
     The arc starts (ends) at rest with a ramp when its clearance is 0 or
-    ``ramps`` is set; the line then runs from rest to rest.
+    ``ramps`` is set; the line then runs from rest to rest. ``unit_law`` (K = 1
+    over the whole arc) lends its quadrature to a law on the same range.
     """
     arc = path.arc
     c1, arc_length, c2 = path.segment_lengths
@@ -366,7 +476,10 @@ def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps):
         if ramp_out is None or ramp_out[0] >= theta_start:
             return None
         theta_end = ramp_out[0]
-    arc_laws.append(_CurvatureArcLaw(arc, rate, c1, theta_start, theta_end))
+    if (theta_start, theta_end) == (unit_law.theta_start, unit_law.theta_end):
+        arc_laws.append(unit_law.at_rate(rate, c1))
+    else:
+        arc_laws.append(_CurvatureArcLaw(arc, rate, c1, theta_start, theta_end))
     if ramp_out is not None:
         arc_laws.append(_pieces_law(ramp_out[1], c1))
     if c2 > 0.0:
