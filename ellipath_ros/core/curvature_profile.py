@@ -62,6 +62,8 @@ _BASELINE_SAMPLES = 4001
 _POLE_STEP = 0.05
 # Samples whose speed-cap ratio is within this share of the smallest get their exact arc length.
 _CAP_SHORTLIST = 1e-6
+# Columns of a panel's row of the states' table (see _panel_polynomials).
+_PANEL_COLUMNS = 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +128,7 @@ class _CurvatureArcLaw:
     @functools.cached_property
     def _hermite_table(self):
         """
-        Return the panel bounds t (M,) and there theta, s and their first 3 derivatives (8, M).
+        Return the panel bounds t (M,) and the panels' polynomials (:func:`_panel_polynomials`).
 
         The bounds are those of the time table plus, on a thin ellipse, more near its
         tightest points theta = k pi: 1/sigma has poles at k pi +- i atanh(b/a), and a
@@ -156,11 +158,10 @@ class _CurvatureArcLaw:
             theta = np.concatenate((theta, crossings))[order]
             # A crossing next to a bound may round to before it: keep the times sorted.
             times = np.maximum.accumulate(times)
-        table = np.empty((8, theta.size))
-        table[0] = theta
-        table[4] = self.s_offset + arc.s_from_t(arc.t_from_theta(theta))
-        _rule_table(theta, a, b, rate, table)
-        return times, table
+        s = self.s_offset + arc.s_from_t(arc.t_from_theta(theta))
+        panels = np.empty((theta.size - 1, _PANEL_COLUMNS))
+        _panel_polynomials(times, theta, s, a, b, rate, panels)
+        return times, panels
 
     def _evaluate(self, t):
         """Return the rows (theta, s, s', s'', s''') at times ``t`` (N,), shape (5, N)."""
@@ -180,74 +181,107 @@ class _CurvatureArcLaw:
 
 
 @kernel
-def _rule_rates(theta, a, b, rate):
-    """Return theta', theta'', theta''', s', s'', s''' of the rule at ``theta`` (see the law)."""
+def _sigma_and_rates(theta, a, b):
+    """Return sigma, sigma_1, sigma_2 at ``theta`` (as ``geometry.ellipse_sigma`` defines them)."""
     sin_theta, cos_theta = math.sin(theta), math.cos(theta)
-    spread, ab = a * a - b * b, a * b
-    # sigma and its derivatives as in geometry.ellipse_sigma; rho = sigma**3 / (a b).
-    sigma = math.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    spread = a * a - b * b
+    sigma = math.sqrt(a * a * sin_theta * sin_theta + b * b * cos_theta * cos_theta)
     sigma_1 = spread * sin_theta * cos_theta / sigma
-    sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
-    rho = sigma ** 3 / ab
-    rho_1 = 3.0 * sigma ** 2 * sigma_1 / ab
-    rho_2 = (6.0 * sigma * sigma_1 ** 2 + 3.0 * sigma ** 2 * sigma_2) / ab
-    return (-rate * rho, rate ** 2 * rho * rho_1, -rate ** 3 * rho * (rho_1 ** 2 + rho * rho_2),
-            rate * sigma ** 4 / ab, -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2,
-            4.0 * rate ** 3 * sigma ** 8 * (6.0 * sigma_1 ** 2 + sigma * sigma_2) / ab ** 3)
+    return sigma, sigma_1, (spread * (cos_theta * cos_theta - sin_theta * sin_theta)
+                            - sigma_1 * sigma_1) / sigma
 
 
 @kernel
-def _rule_table(theta, a, b, rate, out):
-    """Fill rows 1-3 and 5-7 of ``out`` (8, M) with the rates of :func:`_rule_rates`."""
+def _path_rates(sigma, sigma_1, sigma_2, ab, rate):
+    """Return s', s'' and s''' of the rule (see the law) from sigma and its derivatives."""
+    square = sigma * sigma
+    return (rate * square * square / ab,
+            -4.0 * rate * rate * square * square * square * sigma_1 / (ab * ab),
+            4.0 * rate * rate * rate * square * square * square * square
+            * (6.0 * sigma_1 * sigma_1 + sigma * sigma_2) / (ab * ab * ab))
+
+
+@kernel
+def _panel_polynomials(times, theta, s, a, b, rate, out):
+    """
+    Fill ``out`` (M - 1, ``_PANEL_COLUMNS``) with each panel's theta(x) and s(x), x in [0, 1].
+
+    Columns 0-7 and 8-15: the coefficients of the degree-7 polynomials (x**0 first) with
+    value and first three derivatives exact at both bounds (``theta``, ``s`` at
+    ``times``, the rates from the rule); 16-19: the smaller and larger bound of theta
+    and of s, which the values are kept within.
+    """
+    ab = a * b
+    rates = np.empty((theta.size, 6))
     for index in range(theta.size):
-        (out[1, index], out[2, index], out[3, index], out[5, index], out[6, index],
-         out[7, index]) = _rule_rates(theta[index], a, b, rate)
+        sigma, sigma_1, sigma_2 = _sigma_and_rates(theta[index], a, b)
+        rho = sigma * sigma * sigma / ab
+        rho_1 = 3.0 * sigma * sigma * sigma_1 / ab
+        rho_2 = (6.0 * sigma * sigma_1 * sigma_1 + 3.0 * sigma * sigma * sigma_2) / ab
+        rates[index, 0] = -rate * rho
+        rates[index, 1] = rate * rate * rho * rho_1
+        rates[index, 2] = -rate * rate * rate * rho * (rho_1 * rho_1 + rho * rho_2)
+        rates[index, 3], rates[index, 4], rates[index, 5] = _path_rates(sigma, sigma_1, sigma_2,
+                                                                        ab, rate)
+    for panel in range(theta.size - 1):
+        width = times[panel + 1] - times[panel]
+        for column, values, first in ((0, theta, 0), (8, s, 3)):
+            start, end = values[panel], values[panel + 1]
+            slope_0, slope_1 = rates[panel, first] * width, rates[panel + 1, first] * width
+            curve_0 = rates[panel, first + 1] * width * width
+            curve_1 = rates[panel + 1, first + 1] * width * width
+            third_0 = rates[panel, first + 2] * width * width * width
+            third_1 = rates[panel + 1, first + 2] * width * width * width
+            jump = end - start
+            out[panel, column] = start
+            out[panel, column + 1] = slope_0
+            out[panel, column + 2] = 0.5 * curve_0
+            out[panel, column + 3] = third_0 / 6.0
+            out[panel, column + 4] = (35.0 * jump - 20.0 * slope_0 - 15.0 * slope_1
+                                      - 5.0 * curve_0 + 2.5 * curve_1
+                                      - third_0 * (2.0 / 3.0) - third_1 / 6.0)
+            out[panel, column + 5] = (-84.0 * jump + 45.0 * slope_0 + 39.0 * slope_1
+                                      + 10.0 * curve_0 - 7.0 * curve_1 + third_0 + 0.5 * third_1)
+            out[panel, column + 6] = (70.0 * jump - 36.0 * slope_0 - 34.0 * slope_1
+                                      - 7.5 * curve_0 + 6.5 * curve_1
+                                      - third_0 * (2.0 / 3.0) - 0.5 * third_1)
+            out[panel, column + 7] = (-20.0 * jump + 10.0 * (slope_0 + slope_1)
+                                      + 2.0 * (curve_0 - curve_1) + (third_0 + third_1) / 6.0)
+        out[panel, 16] = min(theta[panel], theta[panel + 1])
+        out[panel, 17] = max(theta[panel], theta[panel + 1])
+        out[panel, 18] = min(s[panel], s[panel + 1])
+        out[panel, 19] = max(s[panel], s[panel + 1])
 
 
 @kernel
-def _septic(x, start, end, slope_0, slope_1, curve_0, curve_1, third_0, third_1):
-    """Return at ``x`` the degree-7 polynomial with the 4 given derivatives at x = 0 and 1."""
-    jump = end - start
-    c4 = (35.0 * jump - 20.0 * slope_0 - 15.0 * slope_1 - 5.0 * curve_0 + 2.5 * curve_1
-          - third_0 * (2.0 / 3.0) - third_1 / 6.0)
-    c5 = (-84.0 * jump + 45.0 * slope_0 + 39.0 * slope_1 + 10.0 * curve_0 - 7.0 * curve_1
-          + third_0 + 0.5 * third_1)
-    c6 = (70.0 * jump - 36.0 * slope_0 - 34.0 * slope_1 - 7.5 * curve_0 + 6.5 * curve_1
-          - third_0 * (2.0 / 3.0) - 0.5 * third_1)
-    c7 = (-20.0 * jump + 10.0 * (slope_0 + slope_1) + 2.0 * (curve_0 - curve_1)
-          + (third_0 + third_1) / 6.0)
-    return start + x * (slope_0 + x * (0.5 * curve_0 + x * (third_0 / 6.0 + x * (
-        c4 + x * (c5 + x * (c6 + x * c7))))))
-
-
-@kernel
-def _law_states(t, times, table, a, b, rate, out):
+def _law_states(t, times, panels, a, b, rate, out):
     """
     Fill ``out`` (5, N) with theta, s, s', s'', s''' of the law at times ``t`` (N,).
 
-    ``times`` (M,) are the panel bounds and ``table`` (8, M) the rows of
-    ``_CurvatureArcLaw._hermite_table``. Sorted times (the usual case) find their
-    panel by a step from the previous one, others by bisection.
+    ``times`` (M,) are the panel bounds and ``panels`` the rows of
+    :func:`_panel_polynomials`. Sorted times (the usual case) find their panel by a
+    step from the previous one, others by bisection.
     """
     last = times.size - 2
     duration = times[last + 1]
+    ab = a * b
     panel = 0
     for index in range(t.size):
         now = min(max(t[index], 0.0), duration)
         if now < times[panel] or (now >= times[panel + 1] and panel < last):
             panel = min(max(np.searchsorted(times, now, side='right') - 1, 0), last)
-        after = panel + 1
-        width = max(times[after] - times[panel], 1e-300)
-        x = (now - times[panel]) / width
-        for row in (0, 4):
-            value = _septic(x, table[row, panel], table[row, after],
-                            table[row + 1, panel] * width, table[row + 1, after] * width,
-                            table[row + 2, panel] * width ** 2, table[row + 2, after] * width ** 2,
-                            table[row + 3, panel] * width ** 3, table[row + 3, after] * width ** 3)
-            bound_0, bound_1 = table[row, panel], table[row, after]
-            out[row // 4, index] = min(max(value, min(bound_0, bound_1)), max(bound_0, bound_1))
-        rates = _rule_rates(out[0, index], a, b, rate)
-        out[2, index], out[3, index], out[4, index] = rates[3], rates[4], rates[5]
+        x = (now - times[panel]) / max(times[panel + 1] - times[panel], 1e-300)
+        row = panels[panel]
+        theta = row[0] + x * (row[1] + x * (row[2] + x * (row[3] + x * (
+            row[4] + x * (row[5] + x * (row[6] + x * row[7]))))))
+        theta = min(max(theta, row[16]), row[17])
+        s = row[8] + x * (row[9] + x * (row[10] + x * (row[11] + x * (
+            row[12] + x * (row[13] + x * (row[14] + x * row[15]))))))
+        sigma, sigma_1, sigma_2 = _sigma_and_rates(theta, a, b)
+        out[0, index] = theta
+        out[1, index] = min(max(s, row[18]), row[19])
+        out[2, index], out[3, index], out[4, index] = _path_rates(sigma, sigma_1, sigma_2, ab,
+                                                                  rate)
 
 
 def curvature_nodes(arc, r=0.77):
