@@ -186,19 +186,25 @@ def _sigma_and_rates(theta, a, b):
     sin_theta, cos_theta = math.sin(theta), math.cos(theta)
     spread = a * a - b * b
     sigma = math.sqrt(a * a * sin_theta * sin_theta + b * b * cos_theta * cos_theta)
-    sigma_1 = spread * sin_theta * cos_theta / sigma
+    inverse = 1.0 / sigma
+    sigma_1 = spread * sin_theta * cos_theta * inverse
     return sigma, sigma_1, (spread * (cos_theta * cos_theta - sin_theta * sin_theta)
-                            - sigma_1 * sigma_1) / sigma
+                            - sigma_1 * sigma_1) * inverse
 
 
 @kernel
-def _path_rates(sigma, sigma_1, sigma_2, ab, rate):
+def _path_factors(a, b, rate):
+    """Return K / (a b), -4 K**2 / (a b)**2 and 4 K**3 / (a b)**3 (see :func:`_path_rates`)."""
+    ab = a * b
+    return rate / ab, -4.0 * rate * rate / (ab * ab), 4.0 * rate * rate * rate / (ab * ab * ab)
+
+
+@kernel
+def _path_rates(sigma, sigma_1, sigma_2, factors):
     """Return s', s'' and s''' of the rule (see the law) from sigma and its derivatives."""
-    square = sigma * sigma
-    return (rate * square * square / ab,
-            -4.0 * rate * rate * square * square * square * sigma_1 / (ab * ab),
-            4.0 * rate * rate * rate * square * square * square * square
-            * (6.0 * sigma_1 * sigma_1 + sigma * sigma_2) / (ab * ab * ab))
+    fourth = sigma * sigma * sigma * sigma
+    return (factors[0] * fourth, factors[1] * fourth * sigma * sigma * sigma_1,
+            factors[2] * fourth * fourth * (6.0 * sigma_1 * sigma_1 + sigma * sigma_2))
 
 
 @kernel
@@ -212,6 +218,7 @@ def _panel_polynomials(times, theta, s, a, b, rate, out):
     and of s, which the values are kept within.
     """
     ab = a * b
+    factors = _path_factors(a, b, rate)
     rates = np.empty((theta.size, 6))
     for index in range(theta.size):
         sigma, sigma_1, sigma_2 = _sigma_and_rates(theta[index], a, b)
@@ -222,7 +229,7 @@ def _panel_polynomials(times, theta, s, a, b, rate, out):
         rates[index, 1] = rate * rate * rho * rho_1
         rates[index, 2] = -rate * rate * rate * rho * (rho_1 * rho_1 + rho * rho_2)
         rates[index, 3], rates[index, 4], rates[index, 5] = _path_rates(sigma, sigma_1, sigma_2,
-                                                                        ab, rate)
+                                                                        factors)
     for panel in range(theta.size - 1):
         width = times[panel + 1] - times[panel]
         for column, values, first in ((0, theta, 0), (8, s, 3)):
@@ -264,7 +271,7 @@ def _law_states(t, times, panels, a, b, rate, out):
     """
     last = times.size - 2
     duration = times[last + 1]
-    ab = a * b
+    factors = _path_factors(a, b, rate)
     panel = 0
     for index in range(t.size):
         now = min(max(t[index], 0.0), duration)
@@ -280,8 +287,8 @@ def _law_states(t, times, panels, a, b, rate, out):
         sigma, sigma_1, sigma_2 = _sigma_and_rates(theta, a, b)
         out[0, index] = theta
         out[1, index] = min(max(s, row[18]), row[19])
-        out[2, index], out[3, index], out[4, index] = _path_rates(sigma, sigma_1, sigma_2, ab,
-                                                                  rate)
+        out[2, index], out[3, index], out[4, index] = _path_rates(sigma, sigma_1, sigma_2,
+                                                                  factors)
 
 
 def curvature_nodes(arc, r=0.77):
@@ -423,10 +430,22 @@ def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
 
 def _curvature_state(arc, rate, theta):
     """Return (s from T1 [m], s', s'') of the rule at a scalar ``theta``."""
-    ab = arc.a * arc.b
-    sigma, sigma_1, _ = (float(value) for value in arc.sigma(theta))
-    return (float(arc.s_from_t(arc.t_from_theta(theta))), rate * sigma ** 4 / ab,
-            -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2)
+    return (float(arc.s_from_t(arc.t_from_theta(theta))),) + _curvature_rates(arc, rate, theta)
+
+
+def _curvature_rates(arc, rate, theta):
+    """
+    Return s' and s'' of the rule at a scalar ``theta``.
+
+    sigma and sigma' as ``geometry.ellipse_sigma`` computes them, on floats (libm's
+    sin, cos and pow, as NumPy's): the same numbers without NumPy's per-call cost.
+    """
+    a, b = arc.a, arc.b
+    ab = a * b
+    sin_theta, cos_theta = math.sin(theta), math.cos(theta)
+    sigma = math.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma_1 = (a * a - b * b) * sin_theta * cos_theta / sigma
+    return rate * sigma ** 4 / ab, -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2
 
 
 def _curvature_motion(path, limits, r, speed_cap):
@@ -466,9 +485,9 @@ def _curvature_motion(path, limits, r, speed_cap):
         # law's bounds, in closed form.
         first_arc, last_arc = groups[1][0], groups[1][-1]
         if path.segment_lengths[0] > 0.0:
-            v_t1 = _curvature_state(arc, rate, first_arc.theta_start)[1]
+            v_t1 = _curvature_rates(arc, rate, first_arc.theta_start)[0]
         if path.segment_lengths[2] > 0.0:
-            v_t2 = _curvature_state(arc, rate, last_arc.theta_end)[1]
+            v_t2 = _curvature_rates(arc, rate, last_arc.theta_end)[0]
     law = _Sequence(laws)
     return TimedMotion(path, 'curvature', law.duration, segments,
                        v_t1 ** 2 / arc.end_radius, v_t2 ** 2 / arc.end_radius,
@@ -490,8 +509,8 @@ def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law):
     theta_start, theta_end = arc.theta_T1, arc.theta_T2
     ramp_in = ramp_out = None
     if c1 > 0.0:
-        entry = (0.0, 0.0, 0.0) if ramps else _curvature_state(arc, rate, theta_start)
-        rows = _line_rows((0.0, 0.0, 0.0), (c1, entry[1], entry[2]), limits, speed_cap,
+        entry = (0.0, 0.0) if ramps else _curvature_rates(arc, rate, theta_start)
+        rows = _line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), limits, speed_cap,
                           0.0, c1)
         if rows is None:
             return None
@@ -517,8 +536,8 @@ def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law):
     if ramp_out is not None:
         arc_laws.append(_pieces_law(ramp_out[1], c1))
     if c2 > 0.0:
-        exit_state = (0.0, 0.0, 0.0) if ramps else _curvature_state(arc, rate, theta_end)
-        rows = _line_rows((c1 + arc_length, exit_state[1], exit_state[2]),
+        exit_state = (0.0, 0.0) if ramps else _curvature_rates(arc, rate, theta_end)
+        rows = _line_rows((c1 + arc_length, exit_state[0], exit_state[1]),
                           (path.length, 0.0, 0.0), limits, speed_cap, c1 + arc_length,
                           path.length)
         if rows is None:
