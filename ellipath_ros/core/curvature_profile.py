@@ -34,6 +34,12 @@ the rule there. The same ramps (and lines from rest to rest) are used
 when ``max_accel_jump`` would otherwise be what limits Delta t (with 0,
 always): the rule's speed at T1/T2 is tiny, so stopping there costs
 next to nothing, while a step-limited Delta t would slow the whole arc.
+
+Cost: the loops over nodes, samples and panels are compiled kernels
+(:mod:`.compiled`); those that decide K and the node list do NumPy's
+operations in NumPy's order, so durations and nodes are those of the plain
+NumPy formulas bit for bit. A state of the law costs one table look-up, two
+polynomials and one sine and cosine (no quadrature or iteration per sample).
 """
 
 from dataclasses import dataclass, field
