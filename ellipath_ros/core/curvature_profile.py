@@ -327,24 +327,26 @@ def _nodes_and_unit_law(arc, r):
             f'{law.duration / _MAX_NODES:.3g} rad/m for this arc), got {r!r} rad/m')
     # Room for the Euler steps' count (near the estimate); more if they take more.
     nodes = np.empty(int(estimate * 1.5) + 16)
-    count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, nodes)
+    count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, 2.0, nodes)
     while count > nodes.size:
         nodes = np.empty(2 * nodes.size)
-        count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, nodes)
+        count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, 2.0, nodes)
     nodes = nodes[:count]
     nodes[-1] = arc.theta_T2
     return nodes, law
 
 
 @kernel
-def _node_steps(theta_start, theta_end, a, b, r, out):
+def _node_steps(theta_start, theta_end, a, b, r, square, out):
     """
     Write the nodes theta_{i+1} = theta_i - r rho(theta_i) from theta_start past theta_end.
 
     Returns their count, or more than ``out`` holds if it is too short (then the
     list is incomplete). rho is computed as ``EllipticArc.radius_of_curvature``
-    computes it (libm's sin, cos and pow), so the nodes are those of that
-    function bit for bit.
+    computes it on a scalar (libm's sin, cos and pow), so the nodes are those of
+    that function bit for bit. ``square`` is 2.0, passed at run time: NumPy's scalar
+    ``x ** 2`` calls pow, which is not always x * x, and a constant exponent would
+    let the compiler substitute x * x.
     """
     ab = a * b
     theta = theta_start
@@ -353,8 +355,8 @@ def _node_steps(theta_start, theta_end, a, b, r, out):
     while theta > theta_end:
         if count == out.size:
             return count + 1
-        sigma = math.sqrt(a * a * math.pow(math.sin(theta), 2.0)
-                          + b * b * math.pow(math.cos(theta), 2.0))
+        sigma = math.sqrt(a * a * math.pow(math.sin(theta), square)
+                          + b * b * math.pow(math.cos(theta), square))
         theta -= r * (math.pow(sigma, 3.0) / ab)
         out[count] = theta
         count += 1
@@ -439,6 +441,11 @@ def _curvature_state(arc, rate, theta):
     return (float(arc.s_from_t(arc.t_from_theta(theta))),) + _curvature_rates(arc, rate, theta)
 
 
+def _rule_speed(arc, rate, theta):
+    """Return s' = K sigma**4 / (a b) at a scalar ``theta``, as the law's states on arrays did."""
+    return float((rate * arc.sigma(np.array([theta]))[0] ** 4 / (arc.a * arc.b))[0])
+
+
 def _curvature_rates(arc, rate, theta):
     """
     Return s' and s'' of the rule at a scalar ``theta``.
@@ -491,9 +498,9 @@ def _curvature_motion(path, limits, r, speed_cap):
         # law's bounds, in closed form.
         first_arc, last_arc = groups[1][0], groups[1][-1]
         if path.segment_lengths[0] > 0.0:
-            v_t1 = _curvature_rates(arc, rate, first_arc.theta_start)[0]
+            v_t1 = _rule_speed(arc, rate, first_arc.theta_start)
         if path.segment_lengths[2] > 0.0:
-            v_t2 = _curvature_rates(arc, rate, last_arc.theta_end)[0]
+            v_t2 = _rule_speed(arc, rate, last_arc.theta_end)
     law = _Sequence(laws)
     return TimedMotion(path, 'curvature', law.duration, segments,
                        v_t1 ** 2 / arc.end_radius, v_t2 ** 2 / arc.end_radius,
