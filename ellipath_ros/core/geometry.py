@@ -521,8 +521,11 @@ def _blend_shape(u):
     ellipse (curvature and its rate continuous there). Every polynomial with
     the conditions at 0 and f = f' = f'' = 0 at 1 is
     u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
-    p2 = 0, among the fastest of those tried on seeded random pairs, where a
-    gentler start (p1 > 0) is much slower (scripts/join_study.py).
+    p2 = 0. Gentler starts on longer spans, u**2 (1 - u)**n (1/2 + p u) with
+    n = 5 or 6, p = 1/2 to 5/4, are up to 1.5 % faster on the bench cycles and
+    on most random legs, but trip the time-optimal scan on some lopsided
+    approach legs (whole requests up to 1.9 times as long): see
+    scripts/join_study.py and the README's Joins section.
     """
     return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
             u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
