@@ -22,23 +22,30 @@ path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench
 1. ``corners``: per cycle, the paper join (25 m/s² step) against the G2 join: speed at T1,
    dkappa/ds at T1 and the speed cap it sets through the normal jerk, the transition's peak
    curvature, and TOPP-RA's bound on the G2 path itself (what the geometry alone costs).
-2. ``shapes``: the transition f(u) = u²(1-u)³(1/2 + p1 u + p2 u²) for several (p1, p2),
+2. ``shapes``: the transition f(u) = u²(1-u)ⁿ(1/2 + p1 u + p2 u²) for several (n, p1, p2),
    each with spans from the closed-form horizontal bound and from the distance to the
-   ellipse (the production rule, :func:`ellipath_ros.core.geometry.blend_arc`).
+   ellipse (the production rule, :func:`ellipath_ros.core.geometry.blend_arc`); the
+   production shape is n = 6, p1 = 5/4, p2 = 0.
 3. ``timing``: the same cycles with the scan's shares of the limits raised (is the join
    speed handling conservative?).
 4. ``tolerance``: the production design at several ``join_tolerance``.
 5. ``pairs``: on seeded random pairs (default settings), each shape's planned duration over
-   that of the plain quintic with spans from the horizontal bound (the design before).
-6. ``entry``: the accelerations tried at G2 ends (``_END_ACCEL_SHARES`` of
+   that of the former production shape u²(1-u)⁴/2 (n = 4, p1 = p2 = 0).
+6. ``requests``: whole requests (approach and transfer legs, ``plan_cycle``, default settings,
+   the bench's seeded random pairs chained as the node serves them): each shape's planned
+   cycle time over that with the former shape; the random legs of ``pairs`` miss the
+   lopsided arcs of the approach legs, where a shape may trip the time-optimal scan.
+7. ``entry``: the accelerations tried at G2 ends (``_END_ACCEL_SHARES`` of
    :mod:`ellipath_ros.core.optimal_profile`, chosen by probes): ratios per cycle, and on the
    seeded random pairs the planned duration over that with rest acceleration at the ends and
    the CPU time of the plans (``time.process_time``).
 
 The shapes are swapped in by replacing the geometry module's ``_blend_shape`` and
-``_BLEND_PEAK`` for the duration of one measurement (a study, not an API).
+``_BLEND_PEAK`` for the duration of one measurement, and clearing its cached distance grid
+(which holds the shape's samples) on the way in and out (a study, not an API).
 
-    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs entry]
+    PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs requests
+                                                 entry]
 """
 
 import contextlib
@@ -48,23 +55,35 @@ import sys
 import time
 
 from ellipath_ros.bench.cycle import CYCLES, topp_bound
+from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import arc_scan, geometry, optimal_profile
+from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import BlendedArc, PickPlacePath, plan_path
 from ellipath_ros.core.limits import _JERK_MARGIN, CartesianLimits
+from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.core.settings import default_values
 from ellipath_ros.core.timing import time_motion
+from ellipath_ros.parameters import build_settings
 import numpy as np
 from numpy.polynomial import Polynomial
 
 LIMITS = replace(CartesianLimits(), max_accel_jump=25.0)
 CLEARANCE = 0.025
-SHAPES = ((-1.2, 0.0), (-0.8, 0.0), (-0.5, 0.0), (-0.3, 0.0), (-0.5, -0.5), (-0.5, 0.5),
-          (0.0, 0.0), (0.0, -0.5), (0.3, -0.5), (0.6, -1.5), (1.0, -1.0), (1.5, 0.0))
+# (n, p1, p2) of the shapes u²(1-u)ⁿ(1/2 + p1 u + p2 u²) studied; (4, 0, 0) is the former
+# production shape, (6, 1.25, 0) the current one.
+SHAPES = ((3, 0.0, 0.0), (4, 0.0, 0.0), (4, 1.0, 0.0), (5, 0.5, 0.0), (5, 1.0, 0.0),
+          (6, 0.5, 0.0), (6, 1.0, 0.0), (6, 1.25, 0.0), (6, 1.5, 0.0), (7, 1.5, 0.0),
+          (8, 2.0, 0.0), (10, 3.0, 0.0))
+FORMER_SHAPE = (4, 0.0, 0.0)
 # The pairs study: how many, the seed, and the box they are drawn from (a cylinder of
 # PAIR_RADIUS around the axis, heights in PAIR_HEIGHTS) [m].
-PAIR_COUNT = 40
+PAIR_COUNT = 120
 PAIR_SEED = 7
 PAIR_RADIUS = 0.2
 PAIR_HEIGHTS = (-0.9, -0.75)
+# The requests study: how many of the bench's seeded random pairs, and the shapes compared.
+REQUEST_COUNT = 150
+REQUEST_SHAPES = ((4, 0.0, 0.0), (5, 0.5, 0.0), (6, 1.0, 0.0), (6, 1.25, 0.0))
 # Shares of the scan (arc_scan.py, optimal_profile.py) raised one at a time, then all at once.
 TIMING_VARIANTS = ({}, {'_NORMAL_JERK_SHARE': 0.98}, {'_CEILING_SHARE': 0.98},
                    {'_VALLEY_SHARE': 0.98}, {'_END_RETRY_FACTOR': 0.97, '_END_TRIES': 100},
@@ -76,12 +95,25 @@ ENTRY_VARIANTS = ((0.0,), (0.0, -0.1), (0.0, -0.15), (0.0, -0.2), (0.0, -0.25), 
                   (0.0, -0.1, -0.2), (0.0, -0.1, -0.2, -0.3), (-0.2,))
 
 
-def family_shape(p1, p2):
+def family_shape(n, p1, p2):
     """Return (shape function like geometry._blend_shape, largest |f| on [0, 1])."""
-    f = Polynomial([0.0, 0.0, 1.0]) * Polynomial([1.0, -1.0]) ** 3 * Polynomial([0.5, p1, p2])
+    f = Polynomial([0.0, 0.0, 1.0]) * Polynomial([1.0, -1.0]) ** n * Polynomial([0.5, p1, p2])
     derivatives = [f, f.deriv(1), f.deriv(2), f.deriv(3)]
     peak = float(np.abs(f(np.linspace(0.0, 1.0, 100001))).max()) * (1.0 + 1e-6)
     return (lambda u: tuple(d(u) for d in derivatives)), peak
+
+
+@contextlib.contextmanager
+def shape_of(n, p1, p2):
+    """Use the shape (n, p1, p2) in the geometry module for the duration of the block."""
+    shape, peak = family_shape(n, p1, p2)
+    # The distance grid caches the shape's samples: it must follow the swap both ways.
+    geometry._distance_grid.cache_clear()
+    try:
+        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+            yield
+    finally:
+        geometry._distance_grid.cache_clear()
 
 
 @contextlib.contextmanager
@@ -172,17 +204,17 @@ def corners():
 
 def shapes():
     """Print the ratios of the shape family, spans by horizontal bound and by distance."""
-    print('## shapes: f = u²(1-u)³(1/2 + p1 u + p2 u²), ratio per cycle (planned); '
-          "f'''(0) = 6 p1 - 9")
-    for p1, p2 in SHAPES:
-        shape, peak = family_shape(p1, p2)
+    print('## shapes: f = u²(1-u)ⁿ(1/2 + p1 u + p2 u²), ratio per cycle (planned); '
+          "f'''(0) = 6 p1 - 3 n")
+    for n, p1, p2 in SHAPES:
         row = []
-        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+        with shape_of(n, p1, p2):
             for case in CYCLES:
                 by_offset, by_distance = g2_path(case, horizontal=True), g2_path(case)
                 row.append(f'{ratio(case, by_offset):.4f} / {ratio(case, by_distance):.4f} '
                            f'(span {by_distance.bend.span_1:.3f})')
-        print(f'  p1 {p1:+.1f} p2 {p2:+.1f}: horizontal bound / distance: ' + ' | '.join(row))
+        print(f'  n {n:2d} p1 {p1:+.2f} p2 {p2:+.2f}: horizontal bound / distance: '
+              + ' | '.join(row))
 
 
 def timing_variants():
@@ -224,18 +256,20 @@ def random_papers():
 def pairs():
     """Print each shape's planned durations on random pairs over the design before."""
     print(f'## pairs: {PAIR_COUNT} seeded random pairs (seed {PAIR_SEED}), planned duration over '
-          'that of the plain quintic with spans from the horizontal bound')
+          f'that with the former shape {FORMER_SHAPE}')
     limits = CartesianLimits()
     papers = random_papers()
-    with patched(geometry, **dict(zip(('_blend_shape', '_BLEND_PEAK'), family_shape(0.0, 0.0)))):
-        before = np.array([time_motion(with_bend(paper, bend_of(paper, horizontal=True)),
-                                       limits).duration for paper in papers])
-    for p1, p2 in SHAPES:
-        shape, peak = family_shape(p1, p2)
-        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
-            ratios = np.array([time_motion(with_bend(paper, bend_of(paper)), limits).duration
-                               for paper in papers]) / before
-        print(f'  p1 {p1:+.1f} p2 {p2:+.1f}: mean {ratios.mean():.4f} median '
+
+    def durations():
+        return np.array([time_motion(with_bend(paper, bend_of(paper)), limits).duration
+                         for paper in papers])
+
+    with shape_of(*FORMER_SHAPE):
+        before = durations()
+    for n, p1, p2 in SHAPES:
+        with shape_of(n, p1, p2):
+            ratios = durations() / before
+        print(f'  n {n:2d} p1 {p1:+.2f} p2 {p2:+.2f}: mean {ratios.mean():.4f} median '
               f'{np.median(ratios):.4f} max {ratios.max():.3f}; faster on '
               f'{np.mean(ratios < 0.9995):.0%}, slower on {np.mean(ratios > 1.0005):.0%}')
 
@@ -262,8 +296,43 @@ def entries():
               f'CPU {cpu:.2f} s')
 
 
+def requests():
+    """Print each shape's planned cycle times of whole random requests over the former's."""
+    print(f'## requests: {REQUEST_COUNT} seeded random requests (plan_cycle, default settings), '
+          f'planned cycle time over that with the former shape {FORMER_SHAPE}')
+    settings = build_settings(default_values())
+
+    def cycle_times():
+        start = np.asarray(settings.home_position, dtype=float)
+        times = []
+        for pick, place in random_pairs(REQUEST_COUNT):
+            try:
+                plan = plan_cycle(start, pick, place, settings.planner,
+                                  pick_dwell=settings.pick_dwell,
+                                  place_dwell=settings.place_dwell)
+            except EllipathError:
+                times.append(math.nan)
+                continue
+            start = plan.end_position
+            times.append(float(plan.joint_trajectory.time_from_start[-1]))
+        return np.array(times)
+
+    with shape_of(*FORMER_SHAPE):
+        before = cycle_times()
+    for n, p1, p2 in REQUEST_SHAPES:
+        with shape_of(n, p1, p2):
+            times = cycle_times()
+        kept = ~(np.isnan(before) | np.isnan(times))
+        ratios = times[kept] / before[kept]
+        total = times[kept].sum() / before[kept].sum()
+        print(f'  n {n:2d} p1 {p1:+.2f} p2 {p2:+.2f}: total {total:.4f}'
+              f' median {np.median(ratios):.4f} max {ratios.max():.3f}; faster on '
+              f'{np.mean(ratios < 0.9995):.0%}, slower on {np.mean(ratios > 1.0005):.0%}, '
+              f'over 1.05 on {np.sum(ratios > 1.05)} of {kept.sum()}')
+
+
 STUDIES = {'corners': corners, 'shapes': shapes, 'timing': timing_variants,
-           'tolerance': tolerances, 'pairs': pairs, 'entry': entries}
+           'tolerance': tolerances, 'pairs': pairs, 'requests': requests, 'entry': entries}
 
 
 def main(argv):

@@ -35,6 +35,7 @@ from ellipath_ros.bench.latency import MIN_HORIZONTAL_OFFSET
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.bench.latency import WORKSPACE_RADIUS
 from ellipath_ros.bench.latency import WORKSPACE_Z
+import numba
 import numpy as np
 import pytest
 
@@ -159,6 +160,7 @@ def test_machine_names_the_versions(report):
     assert machine['cores'] == os.cpu_count()
     assert machine['python'] == platform.python_version()
     assert machine['numpy'] == np.__version__
+    assert machine['numba'] == numba.__version__
     assert machine['ruckig'] and machine['cpu']
 
 

@@ -17,7 +17,7 @@
 import functools
 import math
 
-from ellipath_ros.core import optimal_profile
+from ellipath_ros.core import geometry, optimal_profile
 from ellipath_ros.core.errors import DegenerateGeometryError, InvalidInputError
 from ellipath_ros.core.geometry import ArcPolicy, blend_arc, BlendedArc, EllipticArc, plan_path
 from ellipath_ros.core.limits import CartesianLimits
@@ -104,6 +104,30 @@ def test_ellipse_curvature_matches_its_closed_form():
     kappa = arc.curvature_and_rate(t)[0]
     np.testing.assert_allclose(kappa, 1.0 / arc.radius_of_curvature(t + arc.theta_T2),
                                rtol=1e-12)
+
+
+def test_transition_shape_end_conditions_derivatives_and_peak():
+    """
+    The transition shape f: its conditions at both ends, its derivatives and its stated peak.
+
+    f(0) = f'(0) = 0 and f''(0) = 1 cancel the ellipse's curvature at T1/T2; f and its first
+    three derivatives vanish at u = 1 (continuous curvature and rate where it meets the
+    ellipse); each derivative is checked against central differences of the one before, and
+    the closed-form peak (which sizes the always-safe span) against a dense grid.
+    """
+    u = np.linspace(0.0, 1.0, 200001)
+    values = geometry._blend_shape(u)
+    start = [float(value[0]) for value in values[:3]]
+    assert start == pytest.approx([0.0, 0.0, 1.0], abs=1e-15)
+    assert max(abs(float(value[-1])) for value in values) <= 1e-12
+    step = u[1] - u[0]
+    for lower, higher in zip(values, values[1:]):
+        differences = (lower[2:] - lower[:-2]) / (2.0 * step)
+        scale = np.abs(higher).max()
+        np.testing.assert_allclose(differences, higher[1:-1], atol=1e-7 * scale)
+    peak = float(values[0].max())
+    assert peak <= geometry._BLEND_PEAK * (1.0 + 1e-12)
+    assert peak >= geometry._BLEND_PEAK * (1.0 - 1e-9)
 
 
 @pytest.mark.parametrize('name', CASES)

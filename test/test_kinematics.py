@@ -19,6 +19,7 @@ import math
 
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import UnreachableError
+from ellipath_ros.core.kinematics import assembled_joint_rates
 from ellipath_ros.core.kinematics import check_reachable
 from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -309,3 +310,17 @@ def test_joint_motion_is_inverse_kinematics_and_its_rates():
     with pytest.raises(UnreachableError, match=r'^points\[1\]'):
         joint_motion([[0.0, 0.0, -0.8], [0.0, 0.0, 0.1]], velocities[:2], accelerations[:2],
                      GEOMETRY)
+
+
+def test_assembled_joint_rates_are_the_rates_or_none_at_any_failure():
+    points = np.array(GOOD)
+    velocities = np.array([[0.5, -1.0, 0.2], [2.0, 0.0, -1.0], [0.0, 1.5, 1.5]])
+    q, qdot = assembled_joint_rates(points, velocities, GEOMETRY)
+    np.testing.assert_array_equal(q, inverse_kinematics(points, GEOMETRY))
+    np.testing.assert_array_equal(qdot, joint_velocities(points, q, velocities, GEOMETRY))
+    # Out of reach (above the base), and the stretched-arm singularity: no rates, no error.
+    d, reach = 0.155, 0.350 + 0.800
+    stretched = [0.0, 0.0, -math.sqrt(reach ** 2 - d ** 2)]
+    for bad in ([0.0, 0.0, 0.1], stretched):
+        assert assembled_joint_rates(np.vstack((points, bad)), np.ones((4, 3)),
+                                     GEOMETRY) is None

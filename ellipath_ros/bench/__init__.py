@@ -28,7 +28,7 @@
 * ``executed``: the worst executed (JTC-interpolated) TCP speed, acceleration and jerk over
   the latency requests, as ratios to the limits;
 * ``picks_per_min`` on the 25-305-25 mm cycle, beside ABB's quoted IRB 360 figure;
-* ``machine``: CPU, cores, load, Python, NumPy and Ruckig versions.
+* ``machine``: CPU, cores, load, Python, NumPy, numba and Ruckig versions.
 
 ``MODES`` sizes the full run and ``--quick``: a pair count per section and a wall-time budget
 per section; a section that reaches its budget stops there and says so (``n`` is what was
@@ -99,7 +99,7 @@ def machine():
         pass
     return {'cpu': cpu, 'cores': os.cpu_count(), 'load_average': list(os.getloadavg()),
             'python': platform.python_version(), 'numpy': np.__version__,
-            'ruckig': metadata.version('ruckig')}
+            'numba': metadata.version('numba'), 'ruckig': metadata.version('ruckig')}
 
 
 def run_bench(mode='full', pairs=None, e2e_pairs=None, seed=None, domain_id=None,
@@ -205,7 +205,7 @@ def format_report(result):
              f"{result['machine']['cores']} cores, load "
              + ' '.join(f'{load:.1f}' for load in result['machine']['load_average'])
              + f"; Python {result['machine']['python']}, NumPy {result['machine']['numpy']}, "
-             f"Ruckig {result['machine']['ruckig']}",
+             f"numba {result['machine']['numba']}, Ruckig {result['machine']['ruckig']}",
              f"pairs: seed {result['pairs']['seed']}, {result['pairs']['planned']} planned of "
              f"{result['pairs']['drawn']} drawn; profile {result['config']['profile']}, join "
              f"{result['config']['join']}", '',

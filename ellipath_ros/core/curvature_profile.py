@@ -34,15 +34,23 @@ the rule there. The same ramps (and lines from rest to rest) are used
 when ``max_accel_jump`` would otherwise be what limits Delta t (with 0,
 always): the rule's speed at T1/T2 is tiny, so stopping there costs
 next to nothing, while a step-limited Delta t would slow the whole arc.
+
+Cost: the loops over nodes, samples and panels are compiled kernels
+(:mod:`.compiled`); those that decide K and the node list do NumPy's
+operations in NumPy's order, so durations and nodes are those of the plain
+NumPy formulas bit for bit. A state of the law costs one table look-up, two
+polynomials and one sine and cosine (no quadrature or iteration per sample).
 """
 
 from dataclasses import dataclass, field
+import functools
 import math
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
-from .geometry import EllipticArc, radius_of_curvature_derivatives
+from .geometry import EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _pieces_law, _Sequence, TimedMotion
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
@@ -55,6 +63,13 @@ _MAX_NODES = 20000
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _ODE_PANELS = 256
 _BASELINE_SAMPLES = 4001
+# Near the tightest points, bounds of the states' interpolation panels at this share of
+# their distance to the nearest pole of 1/sigma (see _CurvatureArcLaw._hermite_table).
+_POLE_STEP = 0.05
+# Samples whose speed-cap ratio is within this share of the smallest get their exact arc length.
+_CAP_SHORTLIST = 1e-6
+# Columns of a panel's row of the states' table (see _panel_polynomials).
+_PANEL_COLUMNS = 20
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +81,13 @@ class _CurvatureArcLaw:
     s' = K sigma**4 / (a b), s'' = -4 K**2 sigma**6 sigma_1 / (a b)**2,
     s''' = 4 K**3 sigma**8 (6 sigma_1**2 + sigma sigma_2) / (a b)**3 (sigma_i: derivatives
     by theta), and t(theta) = (a b / K) * integral of sigma**-3 from theta to theta_start.
+
+    The time table holds t at ``_ODE_PANELS`` even steps of theta (Gauss-Legendre
+    quadrature per panel); the duration is its total. For the states it also holds, exact
+    at those panel bounds, theta' = -K rho, theta'' = K**2 rho rho_1, s, s' and s'';
+    theta(t) and s(t) are quintic Hermite interpolants between them (no quadrature and no
+    iteration per sample; the tests bound the error against the quadrature), and s', s''
+    and s''' follow from theta(t) in closed form.
     """
 
     arc: EllipticArc
@@ -73,14 +95,30 @@ class _CurvatureArcLaw:
     s_offset: float  # path length at theta_T1 [m]
     theta_start: float
     theta_end: float
+    # The time table's parts that do not depend on K: the panel bounds, |half width| * a b and
+    # the quadrature sums of sigma**-3 (from :meth:`at_rate`, else computed).
+    _quadrature: tuple = field(default=None, repr=False)
     _edges: np.ndarray = field(init=False, repr=False)
     _times: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
-        edges = np.linspace(self.theta_start, self.theta_end, _ODE_PANELS + 1)
+        if self._quadrature is None:
+            edges = np.linspace(self.theta_start, self.theta_end, _ODE_PANELS + 1)
+            # As _elapsed(edges[:-1], edges[1:]) computes it, with the division by K left out.
+            half = 0.5 * (edges[1:] - edges[:-1])
+            nodes = (0.5 * (edges[1:] + edges[:-1]))[..., None] + half[..., None] * _GL_NODES
+            object.__setattr__(self, '_quadrature', (
+                edges, np.abs(half) * (self.arc.a * self.arc.b),
+                self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS))
+        edges, scaled_half, sums = self._quadrature
         object.__setattr__(self, '_edges', edges)
         object.__setattr__(self, '_times', np.concatenate(
-            ([0.0], np.cumsum(self._elapsed(edges[:-1], edges[1:])))))
+            ([0.0], np.cumsum(scaled_half / self.rate * sums))))
+
+    def at_rate(self, rate, s_offset):
+        """Return the law on the same theta range at another K, reusing the quadrature."""
+        return _CurvatureArcLaw(self.arc, rate, s_offset, self.theta_start, self.theta_end,
+                                self._quadrature)
 
     @property
     def duration(self):
@@ -93,30 +131,170 @@ class _CurvatureArcLaw:
         ab = self.arc.a * self.arc.b
         return np.abs(half) * ab / self.rate * (self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS)
 
+    @functools.cached_property
+    def _hermite_table(self):
+        """
+        Return the panel bounds t (M,) and the panels' polynomials (:func:`_panel_polynomials`).
+
+        The bounds are those of the time table plus, on a thin ellipse, more near its
+        tightest points theta = k pi: 1/sigma has poles at k pi +- i atanh(b/a), and a
+        polynomial is accurate over a panel only if the panel is narrow beside its
+        distance to the nearest pole. The time at each added bound is that of the time
+        table's panel it lies in plus the quadrature from that panel's start (the very
+        function the duration sums).
+        """
+        arc, rate = self.arc, self.rate
+        a, b = arc.a, arc.b
+        theta, times = self._edges, self._times
+        if a > b:
+            # sigma**2 = 0 at theta = k pi +- i beta: near k pi, panels as wide as a share
+            # of their distance to that pole, up to where the even steps are narrower.
+            beta = math.atanh(b / a)
+            widest = math.acosh(max(math.pi / (_ODE_PANELS * _POLE_STEP * beta), 1.0))
+            offsets = beta * np.sinh(np.arange(0.0, widest, _POLE_STEP))
+            turns = np.arange(math.floor(self.theta_end / math.pi),
+                              math.ceil(self.theta_start / math.pi) + 1)[:, None] * math.pi
+            crossings = np.concatenate(((turns + offsets).ravel(), (turns - offsets).ravel()))
+            crossings = crossings[(crossings < self.theta_start) & (crossings > self.theta_end)]
+            panel = np.clip(np.searchsorted(-theta, -crossings, side='right') - 1, 0,
+                            _ODE_PANELS - 1)
+            order = np.argsort(-np.concatenate((theta, crossings)), kind='stable')
+            times = np.concatenate((times, times[panel] + self._elapsed(theta[panel], crossings)))[
+                order]
+            theta = np.concatenate((theta, crossings))[order]
+            # A crossing next to a bound may round to before it: keep the times sorted.
+            times = np.maximum.accumulate(times)
+        s = self.s_offset + arc.s_from_t(arc.t_from_theta(theta))
+        panels = np.empty((theta.size - 1, _PANEL_COLUMNS))
+        _panel_polynomials(times, theta, s, a, b, rate, panels)
+        return times, panels
+
+    def _evaluate(self, t):
+        """Return the rows (theta, s, s', s'', s''') at times ``t`` (N,), shape (5, N)."""
+        t = np.ascontiguousarray(t, dtype=float)
+        out = np.empty((5, t.size))
+        _law_states(t, *self._hermite_table, self.arc.a, self.arc.b, self.rate, out)
+        return out
+
     def theta(self, t):
-        """Return theta at times ``t`` (N,) from the start of this law (Newton on the table)."""
-        t = np.clip(t, 0.0, self.duration)
-        panel = np.clip(np.searchsorted(self._times, t, side='right') - 1, 0, _ODE_PANELS - 1)
-        theta_0, theta_1 = self._edges[panel], self._edges[panel + 1]
-        t_0, t_1 = self._times[panel], self._times[panel + 1]
-        theta = theta_0 + (theta_1 - theta_0) * (t - t_0) / np.maximum(t_1 - t_0, 1e-300)
-        ab = self.arc.a * self.arc.b
-        for _ in range(4):
-            residual = t_0 + self._elapsed(theta_0, theta) - t
-            # dt/dtheta = -a b / (K sigma**3)
-            theta = np.clip(theta + residual * self.rate * self.arc.sigma(theta)[0] ** 3 / ab,
-                            theta_1, theta_0)
-        return theta
+        """Return theta at times ``t`` (N,) from the start of this law."""
+        return self._evaluate(t)[0]
 
     def state(self, t):
-        theta = self.theta(t)
-        rate, ab = self.rate, self.arc.a * self.arc.b
-        sigma, sigma_1, sigma_2 = self.arc.sigma(theta)
-        s = self.s_offset + self.arc.s_from_t(self.arc.t_from_theta(theta))
-        speed = rate * sigma ** 4 / ab
-        accel = -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2
-        jerk = 4.0 * rate ** 3 * sigma ** 8 * (6.0 * sigma_1 ** 2 + sigma * sigma_2) / ab ** 3
+        """Return (s, s', s'', s''') at times ``t`` (N,) from the start of this law."""
+        _, s, speed, accel, jerk = self._evaluate(t)
         return s, speed, accel, jerk
+
+
+@kernel
+def _sigma_and_rates(theta, a, b):
+    """Return sigma, sigma_1, sigma_2 at ``theta`` (as ``geometry.ellipse_sigma`` defines them)."""
+    sin_theta, cos_theta = math.sin(theta), math.cos(theta)
+    spread = a * a - b * b
+    sigma = math.sqrt(a * a * sin_theta * sin_theta + b * b * cos_theta * cos_theta)
+    inverse = 1.0 / sigma
+    sigma_1 = spread * sin_theta * cos_theta * inverse
+    return sigma, sigma_1, (spread * (cos_theta * cos_theta - sin_theta * sin_theta)
+                            - sigma_1 * sigma_1) * inverse
+
+
+@kernel
+def _path_factors(a, b, rate):
+    """Return K / (a b), -4 K**2 / (a b)**2 and 4 K**3 / (a b)**3 (see :func:`_path_rates`)."""
+    ab = a * b
+    return rate / ab, -4.0 * rate * rate / (ab * ab), 4.0 * rate * rate * rate / (ab * ab * ab)
+
+
+@kernel
+def _path_rates(sigma, sigma_1, sigma_2, factors):
+    """Return s', s'' and s''' of the rule (see the law) from sigma and its derivatives."""
+    fourth = sigma * sigma * sigma * sigma
+    return (factors[0] * fourth, factors[1] * fourth * sigma * sigma * sigma_1,
+            factors[2] * fourth * fourth * (6.0 * sigma_1 * sigma_1 + sigma * sigma_2))
+
+
+@kernel
+def _panel_polynomials(times, theta, s, a, b, rate, out):
+    """
+    Fill ``out`` (M - 1, ``_PANEL_COLUMNS``) with each panel's theta(x) and s(x), x in [0, 1].
+
+    Columns 0-7 and 8-15: the coefficients of the degree-7 polynomials (x**0 first) with
+    value and first three derivatives exact at both bounds (``theta``, ``s`` at
+    ``times``, the rates from the rule); 16-19: the smaller and larger bound of theta
+    and of s, which the values are kept within.
+    """
+    ab = a * b
+    factors = _path_factors(a, b, rate)
+    rates = np.empty((theta.size, 6))
+    for index in range(theta.size):
+        sigma, sigma_1, sigma_2 = _sigma_and_rates(theta[index], a, b)
+        rho = sigma * sigma * sigma / ab
+        rho_1 = 3.0 * sigma * sigma * sigma_1 / ab
+        rho_2 = (6.0 * sigma * sigma_1 * sigma_1 + 3.0 * sigma * sigma * sigma_2) / ab
+        rates[index, 0] = -rate * rho
+        rates[index, 1] = rate * rate * rho * rho_1
+        rates[index, 2] = -rate * rate * rate * rho * (rho_1 * rho_1 + rho * rho_2)
+        rates[index, 3], rates[index, 4], rates[index, 5] = _path_rates(sigma, sigma_1, sigma_2,
+                                                                        factors)
+    for panel in range(theta.size - 1):
+        width = times[panel + 1] - times[panel]
+        for column, values, first in ((0, theta, 0), (8, s, 3)):
+            start, end = values[panel], values[panel + 1]
+            slope_0, slope_1 = rates[panel, first] * width, rates[panel + 1, first] * width
+            curve_0 = rates[panel, first + 1] * width * width
+            curve_1 = rates[panel + 1, first + 1] * width * width
+            third_0 = rates[panel, first + 2] * width * width * width
+            third_1 = rates[panel + 1, first + 2] * width * width * width
+            jump = end - start
+            out[panel, column] = start
+            out[panel, column + 1] = slope_0
+            out[panel, column + 2] = 0.5 * curve_0
+            out[panel, column + 3] = third_0 / 6.0
+            out[panel, column + 4] = (35.0 * jump - 20.0 * slope_0 - 15.0 * slope_1
+                                      - 5.0 * curve_0 + 2.5 * curve_1
+                                      - third_0 * (2.0 / 3.0) - third_1 / 6.0)
+            out[panel, column + 5] = (-84.0 * jump + 45.0 * slope_0 + 39.0 * slope_1
+                                      + 10.0 * curve_0 - 7.0 * curve_1 + third_0 + 0.5 * third_1)
+            out[panel, column + 6] = (70.0 * jump - 36.0 * slope_0 - 34.0 * slope_1
+                                      - 7.5 * curve_0 + 6.5 * curve_1
+                                      - third_0 * (2.0 / 3.0) - 0.5 * third_1)
+            out[panel, column + 7] = (-20.0 * jump + 10.0 * (slope_0 + slope_1)
+                                      + 2.0 * (curve_0 - curve_1) + (third_0 + third_1) / 6.0)
+        out[panel, 16] = min(theta[panel], theta[panel + 1])
+        out[panel, 17] = max(theta[panel], theta[panel + 1])
+        out[panel, 18] = min(s[panel], s[panel + 1])
+        out[panel, 19] = max(s[panel], s[panel + 1])
+
+
+@kernel
+def _law_states(t, times, panels, a, b, rate, out):
+    """
+    Fill ``out`` (5, N) with theta, s, s', s'', s''' of the law at times ``t`` (N,).
+
+    ``times`` (M,) are the panel bounds and ``panels`` the rows of
+    :func:`_panel_polynomials`. Sorted times (the usual case) find their panel by a
+    step from the previous one, others by bisection.
+    """
+    last = times.size - 2
+    duration = times[last + 1]
+    factors = _path_factors(a, b, rate)
+    panel = 0
+    for index in range(t.size):
+        now = min(max(t[index], 0.0), duration)
+        if now < times[panel] or (now >= times[panel + 1] and panel < last):
+            panel = min(max(np.searchsorted(times, now, side='right') - 1, 0), last)
+        x = (now - times[panel]) / max(times[panel + 1] - times[panel], 1e-300)
+        row = panels[panel]
+        theta = row[0] + x * (row[1] + x * (row[2] + x * (row[3] + x * (
+            row[4] + x * (row[5] + x * (row[6] + x * row[7]))))))
+        theta = min(max(theta, row[16]), row[17])
+        s = row[8] + x * (row[9] + x * (row[10] + x * (row[11] + x * (
+            row[12] + x * (row[13] + x * (row[14] + x * row[15]))))))
+        sigma, sigma_1, sigma_2 = _sigma_and_rates(theta, a, b)
+        out[0, index] = theta
+        out[1, index] = min(max(s, row[18]), row[19])
+        out[2, index], out[3, index], out[4, index] = _path_rates(sigma, sigma_1, sigma_2,
+                                                                  factors)
 
 
 def curvature_nodes(arc, r=0.77):
@@ -134,6 +312,11 @@ def curvature_nodes(arc, r=0.77):
         r <= 0, or so small that the list would exceed ``_MAX_NODES``.
 
     """
+    return _nodes_and_unit_law(arc, r)[0]
+
+
+def _nodes_and_unit_law(arc, r):
+    """Return :func:`curvature_nodes` and the law at K = 1 over the arc it estimates with."""
     r = require_range('r', r, 0.0, math.inf, low_open=True, unit='rad/m')
     # Node count ~ integral of dtheta / (r rho): refuse huge lists before building them.
     law = _CurvatureArcLaw(arc, 1.0, 0.0, arc.theta_T1, arc.theta_T2)
@@ -142,36 +325,140 @@ def curvature_nodes(arc, r=0.77):
         raise InvalidInputError(
             f'r: expected a value giving at most {_MAX_NODES} nodes (r >= '
             f'{law.duration / _MAX_NODES:.3g} rad/m for this arc), got {r!r} rad/m')
-    theta = arc.theta_T1
-    nodes = [theta]
-    while theta > arc.theta_T2:
-        theta -= r * float(arc.radius_of_curvature(theta))
-        nodes.append(theta)
+    # Room for the Euler steps' count (near the estimate); more if they take more.
+    nodes = np.empty(int(estimate * 1.5) + 16)
+    count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, 2.0, nodes)
+    while count > nodes.size:
+        nodes = np.empty(2 * nodes.size)
+        count = _node_steps(arc.theta_T1, arc.theta_T2, arc.a, arc.b, r, 2.0, nodes)
+    nodes = nodes[:count]
     nodes[-1] = arc.theta_T2
-    return np.array(nodes)
+    return nodes, law
+
+
+@kernel
+def _node_steps(theta_start, theta_end, a, b, r, square, out):
+    """
+    Write the nodes theta_{i+1} = theta_i - r rho(theta_i) from theta_start past theta_end.
+
+    Returns their count, or more than ``out`` holds if it is too short (then the
+    list is incomplete). rho is computed as ``EllipticArc.radius_of_curvature``
+    computes it on a scalar (libm's sin, cos and pow), so the nodes are those of
+    that function bit for bit. ``square`` is 2.0, passed at run time: NumPy's scalar
+    ``x ** 2`` calls pow, which is not always x * x, and a constant exponent would
+    let the compiler substitute x * x.
+    """
+    ab = a * b
+    theta = theta_start
+    out[0] = theta
+    count = 1
+    while theta > theta_end:
+        if count == out.size:
+            return count + 1
+        sigma = math.sqrt(a * a * math.pow(math.sin(theta), square)
+                          + b * b * math.pow(math.cos(theta), square))
+        theta -= r * (math.pow(sigma, 3.0) / ab)
+        out[count] = theta
+        count += 1
+    return count
 
 
 def _arc_cartesian_peaks(arc, theta):
-    """Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), each (N,)."""
-    rho, rho_1, rho_2 = radius_of_curvature_derivatives(arc.a, arc.b, theta)
-    # theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1.
-    w1, w2, w3 = -rho, rho * rho_1, -rho * (rho_1 ** 2 + rho * rho_2)
-    p = arc.point(arc.t_from_theta(theta))
-    d1 = arc.derivative(arc.t_from_theta(theta))
-    # d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre).
-    velocity = d1 * w1[:, None]
-    accel = -p * (w1 ** 2)[:, None] + d1 * w2[:, None]
-    jerk = -d1 * (w1 ** 3)[:, None] - 3.0 * p * (w1 * w2)[:, None] + d1 * w3[:, None]
-    return (np.linalg.norm(velocity, axis=1), np.linalg.norm(accel, axis=1),
-            np.linalg.norm(jerk, axis=1))
+    """
+    Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), and sigma, sigma'.
+
+    Each (N,); computed as NumPy computes the same formulas (see :func:`_rule_norms`).
+    """
+    out = np.empty((5, theta.size))
+    _rule_norms(np.ascontiguousarray(theta, dtype=float), arc.a, arc.b, arc.l, arc.h, arc.k,
+                arc.theta_T2, out)
+    return out
+
+
+@kernel
+def _rule_norms(theta, a, b, l_, h, k, theta_t2, out):
+    """
+    Fill ``out`` (5, N) with |v|, |a|, |j| of the rule with K = 1, sigma and sigma' at ``theta``.
+
+    theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1;
+    d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre). The
+    operations are those of ``geometry.radius_of_curvature_derivatives``,
+    ``EllipticArc.point`` and ``derivative`` and ``numpy.linalg.norm``, in their
+    order, with libm's sin, cos and pow: the same numbers bit for bit.
+    """
+    spread, ab = a * a - b * b, a * b
+    for index in range(theta.size):
+        angle = theta[index]
+        sin_theta, cos_theta = math.sin(angle), math.cos(angle)
+        sigma = math.sqrt(a * a * math.pow(sin_theta, 2.0) + b * b * math.pow(cos_theta, 2.0))
+        sigma_1 = spread * sin_theta * cos_theta / sigma
+        sigma_2 = (spread * (math.pow(cos_theta, 2.0) - math.pow(sin_theta, 2.0))
+                   - math.pow(sigma_1, 2.0)) / sigma
+        rho = math.pow(sigma, 3.0) / ab
+        rho_1 = 3.0 * math.pow(sigma, 2.0) * sigma_1 / ab
+        rho_2 = (6.0 * sigma * math.pow(sigma_1, 2.0) + 3.0 * math.pow(sigma, 2.0) * sigma_2) / ab
+        w1, w2 = -rho, rho * rho_1
+        w3 = -rho * (math.pow(rho_1, 2.0) + rho * rho_2)
+        t = angle - theta_t2
+        sin_t, cos_t = math.sin(t), math.cos(t)
+        px, py = l_ * cos_t, h * cos_t + k * sin_t
+        dx, dy = -l_ * sin_t, -h * sin_t + k * cos_t
+        vx, vy = dx * w1, dy * w1
+        square, cube, product = math.pow(w1, 2.0), math.pow(w1, 3.0), w1 * w2
+        ax, ay = -px * square + dx * w2, -py * square + dy * w2
+        jx = -dx * cube - 3.0 * px * product + dx * w3
+        jy = -dy * cube - 3.0 * py * product + dy * w3
+        out[0, index] = math.sqrt(vx * vx + vy * vy)
+        out[1, index] = math.sqrt(ax * ax + ay * ay)
+        out[2, index] = math.sqrt(jx * jx + jy * jy)
+        out[3, index] = sigma
+        out[4, index] = sigma_1
+
+
+def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
+    """
+    Return the largest K the speed cap allows at the samples ``theta``: min cap(s) / speed.
+
+    The arc length of every sample by quadrature (``s_from_t``) would cost more than
+    the rest of the profile: the corrected trapezoid rule on the samples' own sigma
+    and sigma' (error ~h**4, far below 1e-9 m) shortlists the samples within
+    ``_CAP_SHORTLIST`` of the smallest ratio, and only those are computed exactly, so
+    the result is the exact minimum, the same number as over all samples.
+    """
+    arc = path.arc
+    c1 = path.segment_lengths[0]
+    step = theta[:-1] - theta[1:]
+    pieces = 0.5 * step * (sigma[:-1] + sigma[1:]) - step ** 2 / 12.0 * (sigma_1[:-1]
+                                                                         - sigma_1[1:])
+    ratio = _cap_values(speed_cap, c1 + np.concatenate(([0.0], np.cumsum(pieces)))) / speed
+    shortlist = np.flatnonzero(ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST))
+    s = c1 + arc.s_from_t(arc.t_from_theta(theta[shortlist]))
+    return float(np.min(_cap_values(speed_cap, s) / speed[shortlist]))
 
 
 def _curvature_state(arc, rate, theta):
     """Return (s from T1 [m], s', s'') of the rule at a scalar ``theta``."""
-    ab = arc.a * arc.b
-    sigma, sigma_1, _ = (float(value) for value in arc.sigma(theta))
-    return (float(arc.s_from_t(arc.t_from_theta(theta))), rate * sigma ** 4 / ab,
-            -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2)
+    return (float(arc.s_from_t(arc.t_from_theta(theta))),) + _curvature_rates(arc, rate, theta)
+
+
+def _rule_speed(arc, rate, theta):
+    """Return s' = K sigma**4 / (a b) at a scalar ``theta``, as the law's states on arrays did."""
+    return float((rate * arc.sigma(np.array([theta]))[0] ** 4 / (arc.a * arc.b))[0])
+
+
+def _curvature_rates(arc, rate, theta):
+    """
+    Return s' and s'' of the rule at a scalar ``theta``.
+
+    sigma and sigma' as ``geometry.ellipse_sigma`` computes them, on floats (libm's
+    sin, cos and pow, as NumPy's): the same numbers without NumPy's per-call cost.
+    """
+    a, b = arc.a, arc.b
+    ab = a * b
+    sin_theta, cos_theta = math.sin(theta), math.cos(theta)
+    sigma = math.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma_1 = (a * a - b * b) * sin_theta * cos_theta / sigma
+    return rate * sigma ** 4 / ab, -4.0 * rate ** 2 * sigma ** 6 * sigma_1 / ab ** 2
 
 
 def _curvature_motion(path, limits, r, speed_cap):
@@ -179,24 +466,24 @@ def _curvature_motion(path, limits, r, speed_cap):
     if path.arc is None:
         return _straight_motion(path, limits, speed_cap, 'curvature')
     arc = path.arc
-    nodes = curvature_nodes(arc, r)
+    nodes, unit_law = _nodes_and_unit_law(arc, r)
     # The tightest point (theta = 0 mod pi) is sampled exactly.
     theta = np.linspace(arc.theta_T1, arc.theta_T2, _BASELINE_SAMPLES)
     theta = np.sort(np.append(theta, math.pi * math.ceil(arc.theta_T2 / math.pi)))[::-1]
-    speed, accel, jerk = _arc_cartesian_peaks(arc, theta)
+    speed, accel, jerk, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
     rate = min(limits.max_speed * _SPEED_MARGIN / speed.max(),
                math.sqrt(limits.max_accel * _ACCEL_MARGIN / accel.max()),
                (limits.max_jerk * _JERK_MARGIN / jerk.max()) ** (1.0 / 3.0))
     if speed_cap is not None:
-        s = path.segment_lengths[0] + arc.s_from_t(arc.t_from_theta(theta))
-        rate = min(rate, _SPEED_MARGIN * float(np.min(_cap_values(speed_cap, s) / speed)))
+        rate = min(rate, _SPEED_MARGIN * _cap_rate(path, speed_cap, theta, speed, sigma,
+                                                   sigma_1))
     # Step at T1/T2: s'**2 / rho_T <= max_accel_jump, s' = K u_T (same u at both ends). When
     # that would slow the whole arc down, the arc starts and ends at rest (ramps) instead.
     ramps = math.sqrt(limits.max_accel_jump * arc.end_radius) / speed[0] < rate
     # The entry and exit states scale with K: shrink it until the lines (or ramps) fit.
     groups = None
     for _ in range(40):
-        groups = _curvature_groups(path, limits, speed_cap, nodes, rate, ramps)
+        groups = _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law)
         if groups is not None:
             break
         rate *= 0.8
@@ -207,24 +494,26 @@ def _curvature_motion(path, limits, r, speed_cap):
     segments = np.array([sum(law.duration for law in group) for group in groups])
     v_t1 = v_t2 = 0.0
     if not ramps:
-        # Where a ramp starts (ends) the arc, s' = 0 there exactly.
+        # Where a ramp starts (ends) the arc, s' = 0 there exactly. Else the rule's speed at the
+        # law's bounds, in closed form.
         first_arc, last_arc = groups[1][0], groups[1][-1]
         if path.segment_lengths[0] > 0.0:
-            v_t1 = float(first_arc.state(np.zeros(1))[1][0])
+            v_t1 = _rule_speed(arc, rate, first_arc.theta_start)
         if path.segment_lengths[2] > 0.0:
-            v_t2 = float(last_arc.state(np.array([last_arc.duration]))[1][0])
+            v_t2 = _rule_speed(arc, rate, last_arc.theta_end)
     law = _Sequence(laws)
     return TimedMotion(path, 'curvature', law.duration, segments,
                        v_t1 ** 2 / arc.end_radius, v_t2 ** 2 / arc.end_radius,
                        int(nodes.size), law, node_period=r / rate)
 
 
-def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps):
+def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps, unit_law):
     """
     Return (lift laws, arc laws, descent laws) for the rule at rate K, or None if none fit.
 
     The arc starts (ends) at rest with a ramp when its clearance is 0 or
-    ``ramps`` is set; the line then runs from rest to rest.
+    ``ramps`` is set; the line then runs from rest to rest. ``unit_law`` (K = 1
+    over the whole arc) lends its quadrature to a law on the same range.
     """
     arc = path.arc
     c1, arc_length, c2 = path.segment_lengths
@@ -233,8 +522,8 @@ def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps):
     theta_start, theta_end = arc.theta_T1, arc.theta_T2
     ramp_in = ramp_out = None
     if c1 > 0.0:
-        entry = (0.0, 0.0, 0.0) if ramps else _curvature_state(arc, rate, theta_start)
-        rows = _line_rows((0.0, 0.0, 0.0), (c1, entry[1], entry[2]), limits, speed_cap,
+        entry = (0.0, 0.0) if ramps else _curvature_rates(arc, rate, theta_start)
+        rows = _line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), limits, speed_cap,
                           0.0, c1)
         if rows is None:
             return None
@@ -253,12 +542,15 @@ def _curvature_groups(path, limits, speed_cap, nodes, rate, ramps):
         if ramp_out is None or ramp_out[0] >= theta_start:
             return None
         theta_end = ramp_out[0]
-    arc_laws.append(_CurvatureArcLaw(arc, rate, c1, theta_start, theta_end))
+    if (theta_start, theta_end) == (unit_law.theta_start, unit_law.theta_end):
+        arc_laws.append(unit_law.at_rate(rate, c1))
+    else:
+        arc_laws.append(_CurvatureArcLaw(arc, rate, c1, theta_start, theta_end))
     if ramp_out is not None:
         arc_laws.append(_pieces_law(ramp_out[1], c1))
     if c2 > 0.0:
-        exit_state = (0.0, 0.0, 0.0) if ramps else _curvature_state(arc, rate, theta_end)
-        rows = _line_rows((c1 + arc_length, exit_state[1], exit_state[2]),
+        exit_state = (0.0, 0.0) if ramps else _curvature_rates(arc, rate, theta_end)
+        rows = _line_rows((c1 + arc_length, exit_state[0], exit_state[1]),
                           (path.length, 0.0, 0.0), limits, speed_cap, c1 + arc_length,
                           path.length)
         if rows is None:

@@ -48,6 +48,7 @@ import math
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import DegenerateGeometryError, InvalidInputError, require_point, require_range
 from .settings import default_of, validate, validate_fields
 
@@ -309,23 +310,10 @@ class _ParametricArc:
         and d2t/ds2 exact at both ends); on 256 panels it is within 1e-10 m of
         the exact inverse of the arc length even on needle-thin arcs.
         """
-        panel_t, panel_s, dt_ds, d2t_ds2 = self._table
-        s = np.clip(np.asarray(s, dtype=float), 0.0, panel_s[-1])
-        panel = np.clip(np.searchsorted(panel_s, s, side='right') - 1, 0, panel_s.size - 2)
-        after = panel + 1
-        s0 = panel_s[panel]
-        width = np.maximum(panel_s[after] - s0, 1e-300)
-        x = (s - s0) / width
-        t0, t1 = panel_t[panel], panel_t[after]
-        v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
-        a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
-        # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
-        jump = t1 - t0
-        c3 = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
-        c4 = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
-        c5 = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
-        t = t0 + x * (v0 + x * (0.5 * a0 + x * (c3 + x * (c4 + x * c5))))
-        return np.clip(t, t1, t0)
+        s = np.asarray(s, dtype=float)
+        t = np.empty(s.size)
+        _t_from_s_rows(*self._table, np.ascontiguousarray(s).reshape(-1), t)
+        return t[0] if s.ndim == 0 else t.reshape(s.shape)
 
     def curvature_and_rate(self, t):
         """
@@ -521,8 +509,11 @@ def _blend_shape(u):
     ellipse (curvature and its rate continuous there). Every polynomial with
     the conditions at 0 and f = f' = f'' = 0 at 1 is
     u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
-    p2 = 0, among the fastest of those tried on seeded random pairs, where a
-    gentler start (p1 > 0) is much slower (scripts/join_study.py).
+    p2 = 0. Gentler starts on longer spans, u**2 (1 - u)**n (1/2 + p u) with
+    n = 5 or 6, p = 1/2 to 5/4, are up to 1.5 % faster on the bench cycles and
+    on most random legs, but trip the time-optimal scan on some lopsided
+    approach legs (whole requests up to 1.9 times as long): see
+    scripts/join_study.py and the README's Joins section.
     """
     return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
             u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
@@ -1018,8 +1009,47 @@ class PickPlacePath:
         r_sss = (P_3 - g'' r_s - 3 g g' r_ss) / g**3.
         """
         t = self.bend.t_from_s(s_arc)
-        (x, y), (x1, y1), (x2, y2), (x3, y3) = self.bend.components(t)
-        sigma = np.sqrt(x1 * x1 + y1 * y1)
+        components = np.array([value for pair in self.bend.components(t) for value in pair])
+        columns = (np.arange(mask.start, mask.stop) if isinstance(mask, slice)
+                   else mask)
+        _arc_rows(components, np.ascontiguousarray(self.direction, dtype=float),
+                  np.ascontiguousarray(self.midpoint, dtype=float), columns, position, tangent,
+                  curvature, rate)
+
+
+@kernel
+def _t_from_s_rows(panel_t, panel_s, dt_ds, d2t_ds2, lengths, out):
+    """Fill ``out`` (N,) with :meth:`_ParametricArc.t_from_s` of ``lengths`` (N,)."""
+    last = panel_s.size - 2
+    for row in range(lengths.size):
+        s = min(max(lengths[row], 0.0), panel_s[-1])
+        panel = min(max(np.searchsorted(panel_s, s, side='right') - 1, 0), last)
+        after = panel + 1
+        s0 = panel_s[panel]
+        width = max(panel_s[after] - s0, 1e-300)
+        x = (s - s0) / width
+        t0, t1 = panel_t[panel], panel_t[after]
+        v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
+        a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
+        # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
+        jump = t1 - t0
+        c3 = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
+        c4 = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
+        c5 = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
+        value = t0 + x * (v0 + x * (0.5 * a0 + x * (c3 + x * (c4 + x * c5))))
+        out[row] = min(max(value, t1), t0)
+
+
+@kernel
+def _arc_rows(components, direction, midpoint, columns, position, tangent, curvature, rate):
+    """
+    Fill ``columns`` of the (3, N) rows from the bend's (x, y) and derivatives by t (8, M).
+
+    See :meth:`PickPlacePath._evaluate_arc`.
+    """
+    for row in range(columns.size):
+        x, y, x1, y1, x2, y2, x3, y3 = components[:, row]
+        sigma = math.sqrt(x1 * x1 + y1 * y1)
         sigma_1 = (x1 * x2 + y1 * y2) / sigma
         sigma_2 = (x2 * x2 + y2 * y2 + x1 * x3 + y1 * y3) / sigma - sigma_1 * sigma_1 / sigma
         g_inv = -1.0 / sigma
@@ -1032,15 +1062,17 @@ class PickPlacePath:
         g_inv_3 = g_inv_2 * g_inv
         rate_x = (x3 - g2 * tangent_x - three_g_g1 * curvature_x) * g_inv_3
         rate_y = (y3 - g2 * tangent_y - three_g_g1 * curvature_y) * g_inv_3
-        direction = self.direction
+        column = columns[row]
         # The base frame's x, y are along the paper frame's x; its z is the paper's y.
-        for out, along, vertical in ((position, x, y), (tangent, tangent_x, tangent_y),
-                                     (curvature, curvature_x, curvature_y),
-                                     (rate, rate_x, rate_y)):
-            out[0, mask] = along * direction[0]
-            out[1, mask] = along * direction[1]
-            out[2, mask] = along * direction[2] + vertical
-        position[:, mask] += self.midpoint[:, None]
+        for axis in range(2):
+            position[axis, column] = x * direction[axis] + midpoint[axis]
+            tangent[axis, column] = tangent_x * direction[axis]
+            curvature[axis, column] = curvature_x * direction[axis]
+            rate[axis, column] = rate_x * direction[axis]
+        position[2, column] = x * direction[2] + y + midpoint[2]
+        tangent[2, column] = tangent_x * direction[2] + tangent_y
+        curvature[2, column] = curvature_x * direction[2] + curvature_y
+        rate[2, column] = rate_x * direction[2] + rate_y
 
 
 def _selector(mask):

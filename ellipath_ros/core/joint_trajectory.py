@@ -34,11 +34,15 @@ import functools
 import math
 from typing import Protocol
 
+from ellipath_ros.core.compiled import kernel
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
-from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.kinematics import _ASSEMBLED
+from ellipath_ros.core.kinematics import _forward_row
+from ellipath_ros.core.kinematics import _kernel_geometry
+from ellipath_ros.core.kinematics import _tcp_row
 from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import largest_magnitude_per_row
 from ellipath_ros.core.kinematics import tcp_derivatives
@@ -332,16 +336,41 @@ def _interpolated(traj, times, order):
         hold = np.zeros(times.shape, dtype=int)
         return tuple(source[hold] for source in sources)
     starts = np.arange(knots.size - 1)
-    # Per joint (6, 3, S): each sample's coefficients are then one contiguous gather.
-    coefficients = np.ascontiguousarray(
-        _quintic_coefficients(traj, starts, starts + 1).transpose(1, 2, 0))
-    segment = np.clip(np.searchsorted(knots, times, side='right') - 1, 0, knots.size - 2)
-    offset = np.clip(times - knots[segment], 0.0, None)
-    values = tuple(value.T for value in _horner(coefficients[..., segment], offset, order))
-    after = times >= knots[-1]
-    for value, source in zip(values, sources):
-        value[after] = source[-1]
-    return values
+    coefficients = np.ascontiguousarray(_quintic_coefficients(traj, starts, starts + 1))
+    values = np.empty((order + 1, times.size, 3))
+    _interpolate_rows(coefficients, knots, np.ascontiguousarray(times),
+                      np.stack(sources)[:, -1], values)
+    return tuple(values)
+
+
+@kernel
+def _interpolate_rows(coefficients, knots, times, last, values):
+    """
+    Fill ``values`` (D + 1, N, 3) with JTC's position and D derivatives at ``times`` (N,).
+
+    In the segment whose start is the last knot <= t (the first before the first knot),
+    by :func:`_horner`'s operations; from the last knot on, ``last`` (D + 1, 3).
+    """
+    order = values.shape[0] - 1
+    final = knots.size - 2
+    for row in range(times.size):
+        time = times[row]
+        if time >= knots[-1]:
+            values[:, row, :] = last
+            continue
+        segment = min(max(np.searchsorted(knots, time, side='right') - 1, 0), final)
+        x = time - knots[segment]
+        if x < 0.0:
+            x = 0.0
+        c = coefficients[segment]
+        for j in range(3):
+            values[0, row, j] = _quintic(c, j, x)
+            if order >= 1:
+                values[1, row, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x
+                                       + 3.0 * c[3, j]) * x + 2.0 * c[2, j]) * x + c[1, j])
+            if order >= 2:
+                values[2, row, j] = (((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x
+                                      + 6.0 * c[3, j]) * x + 2.0 * c[2, j])
 
 
 def _quintic_coefficients(knots, start, end):
@@ -395,6 +424,10 @@ def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=N
     has_acceleration = a0 is not None and a1 is not None
     if has_acceleration and not has_velocity:
         return coefficients
+    if has_acceleration:
+        _quintic_rows(h[:, 0], q0, q1, *(np.asarray(value, dtype=float)
+                                         for value in (v0, v1, a0, a1)), coefficients)
+        return coefficients
     dq = q1 - q0
     coefficients[:, 0] = q0
     if not has_velocity:
@@ -403,19 +436,30 @@ def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=N
     v0, v1 = np.asarray(v0, dtype=float), np.asarray(v1, dtype=float)
     h2 = h * h
     coefficients[:, 1] = v0
-    if not has_acceleration:
-        coefficients[:, 2] = (3.0 * dq - (2.0 * v0 + v1) * h) / h2
-        coefficients[:, 3] = (-2.0 * dq + (v0 + v1) * h) / (h2 * h)
-        return coefficients
-    a0, a1 = np.asarray(a0, dtype=float), np.asarray(a1, dtype=float)
-    coefficients[:, 2] = 0.5 * a0
-    coefficients[:, 3] = (20.0 * dq - (8.0 * v1 + 12.0 * v0) * h - (3.0 * a0 - a1) * h2) / (
-        2.0 * h2 * h)
-    coefficients[:, 4] = (-30.0 * dq + (14.0 * v1 + 16.0 * v0) * h + (3.0 * a0 - 2.0 * a1)
-                          * h2) / (2.0 * h2 * h2)
-    coefficients[:, 5] = (12.0 * dq - 6.0 * (v1 + v0) * h - (a0 - a1) * h2) / (
-        2.0 * h2 * h2 * h)
+    coefficients[:, 2] = (3.0 * dq - (2.0 * v0 + v1) * h) / h2
+    coefficients[:, 3] = (-2.0 * dq + (v0 + v1) * h) / (h2 * h)
     return coefficients
+
+
+@kernel
+def _quintic_rows(h, q0, q1, v0, v1, a0, a1, coefficients):
+    """Fill the quintic ``coefficients`` (S, 6, 3) of :func:`interpolation_coefficients`."""
+    for row in range(h.size):
+        length = h[row]
+        h2 = length * length
+        for j in range(q0.shape[1]):
+            dq = q1[row, j] - q0[row, j]
+            start_v, end_v = v0[row, j], v1[row, j]
+            start_a, end_a = a0[row, j], a1[row, j]
+            coefficients[row, 0, j] = q0[row, j]
+            coefficients[row, 1, j] = start_v
+            coefficients[row, 2, j] = 0.5 * start_a
+            coefficients[row, 3, j] = (20.0 * dq - (8.0 * end_v + 12.0 * start_v) * length
+                                       - (3.0 * start_a - end_a) * h2) / (2.0 * h2 * length)
+            coefficients[row, 4, j] = (-30.0 * dq + (14.0 * end_v + 16.0 * start_v) * length
+                                       + (3.0 * start_a - 2.0 * end_a) * h2) / (2.0 * h2 * h2)
+            coefficients[row, 5, j] = (12.0 * dq - 6.0 * (end_v + start_v) * length
+                                       - (start_a - end_a) * h2) / (2.0 * h2 * h2 * length)
 
 
 def evaluate_polynomials(coefficients, offset, derivatives=True):
@@ -608,12 +652,41 @@ def _segment_errors(planned, geometry, knots, start, end, fractions):
     t0 = knots.time_from_start[start]
     length = knots.time_from_start[end] - t0
     offset = length[:, np.newaxis] * fractions
-    coefficients = _quintic_coefficients(knots, start, end)
-    q = evaluate_polynomials(coefficients, offset, derivatives=False).reshape(-1, 3)
-    reached = forward_kinematics(q, geometry, strict=False)
-    error = np.linalg.norm(reached - planned((t0[:, np.newaxis] + offset).ravel()), axis=1)
-    error = error.reshape(offset.shape)
-    return np.where(np.isnan(error), np.inf, error).max(axis=1)
+    coefficients = np.ascontiguousarray(_quintic_coefficients(knots, start, end))
+    errors = np.empty(start.size)
+    _deviations(coefficients, offset, planned((t0[:, np.newaxis] + offset).ravel()),
+                *_kernel_geometry(geometry)[:5], errors)
+    return errors
+
+
+@kernel
+def _deviations(coefficients, offsets, planned, rx, ry, offset, upper, forearm_sq, errors):
+    """
+    Per segment, the largest distance of FK(quintic) at ``offsets`` (S, M) from ``planned``.
+
+    ``planned`` (S M, 3) is row-major over (segment, offset); an interpolated pose that
+    cannot be assembled counts as inf. ``errors`` (S,) receives the result.
+    """
+    reached = np.empty((1, 3))
+    segments, count = offsets.shape
+    for segment in range(segments):
+        worst = -np.inf
+        for sample in range(count):
+            x = offsets[segment, sample]
+            c = coefficients[segment]
+            error = np.inf
+            if _forward_row(_quintic(c, 0, x), _quintic(c, 1, x), _quintic(c, 2, x), rx, ry,
+                            offset, upper, forearm_sq, reached, 0) == _ASSEMBLED:
+                row = segment * count + sample
+                dx = reached[0, 0] - planned[row, 0]
+                dy = reached[0, 1] - planned[row, 1]
+                dz = reached[0, 2] - planned[row, 2]
+                error = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if error != error:
+                    error = np.inf
+            if error > worst:
+                worst = error
+        errors[segment] = worst
 
 
 class MotionSamples:
@@ -774,19 +847,34 @@ class MotionSamples:
             self._planned = (self.times[keep], np.ascontiguousarray(self.position[keep].T),
                              np.ascontiguousarray(self.velocity[keep].T))
         table_times, position, velocity = self._planned
-        step = np.minimum(np.maximum(np.searchsorted(table_times, times, side='right') - 1, 0),
-                          table_times.size - 2)
+        rows = np.empty((times.size, 3))
+        _hermite_rows(table_times, position, velocity, np.ascontiguousarray(times), rows)
+        return rows
+
+
+@kernel
+def _hermite_rows(table_times, position, velocity, times, rows):
+    """
+    Fill ``rows`` (N, 3) with the cubic Hermite interpolation of the table at ``times``.
+
+    ``position`` and ``velocity`` are coordinate rows (3, K) at ``table_times`` (K,);
+    the interval is the last one starting at or before t (the first or last beyond).
+    """
+    final = table_times.size - 2
+    for row in range(times.size):
+        time = times[row]
+        step = min(max(np.searchsorted(table_times, time, side='right') - 1, 0), final)
         after = step + 1
         start = table_times[step]
         width = table_times[after] - start
-        x = (times - start) / width
+        x = (time - start) / width
         x2, x3 = x * x, x * x * x
         # Cubic Hermite basis on [0, 1]; the velocities scale with the width.
-        rows = ((2.0 * x3 - 3.0 * x2 + 1.0) * position[:, step]
-                + (x3 - 2.0 * x2 + x) * width * velocity[:, step]
-                + (3.0 * x2 - 2.0 * x3) * position[:, after]
-                + (x3 - x2) * width * velocity[:, after])
-        return np.ascontiguousarray(rows.T)
+        for axis in range(3):
+            rows[row, axis] = ((2.0 * x3 - 3.0 * x2 + 1.0) * position[axis, step]
+                               + (x3 - 2.0 * x2 + x) * width * velocity[axis, step]
+                               + (3.0 * x2 - 2.0 * x3) * position[axis, after]
+                               + (x3 - x2) * width * velocity[axis, after])
 
 
 def _nearest_sample(sorted_times, targets):
@@ -1128,13 +1216,67 @@ def executed_table(trajectory, geometry, previous=None):
 
 def _executed_values(coefficients, offsets, geometry):
     """Return TCP speed, acceleration, jerk and largest |q_dot|, |q_ddot| at (S, M), (S, M, 5)."""
-    q, qdot, qddot, qdddot = evaluate_segments(coefficients, offsets)
-    _, velocity, acceleration, jerk = tcp_derivatives(
-        q.reshape(-1, 3), qdot.reshape(-1, 3), qddot.reshape(-1, 3), qdddot.reshape(-1, 3),
-        geometry, name='interpolated q')
-    norms = [np.sqrt(np.einsum('ij,ij->i', value, value)).reshape(offsets.shape)
-             for value in (velocity, acceleration, jerk)]
-    return np.stack(norms + [np.abs(qdot).max(axis=2), np.abs(qddot).max(axis=2)], axis=2)
+    coefficients = np.ascontiguousarray(coefficients)
+    offsets = np.ascontiguousarray(offsets)
+    values = np.empty(offsets.shape + (len(EXECUTED_KEYS),))
+    if _executed_rows(coefficients, offsets, *_kernel_geometry(geometry), values) >= 0:
+        # The error of the first pose that cannot be assembled, named as before.
+        q, qdot, qddot, qdddot = evaluate_segments(coefficients, offsets)
+        tcp_derivatives(q.reshape(-1, 3), qdot.reshape(-1, 3), qddot.reshape(-1, 3),
+                        qdddot.reshape(-1, 3), geometry, name='interpolated q')
+    return values
+
+
+@kernel
+def _quintic(c, j, x):
+    """Return joint j's polynomial ``c`` (6, 3) at ``x``, in :func:`_horner`'s order."""
+    return ((((c[5, j] * x + c[4, j]) * x + c[3, j]) * x + c[2, j]) * x + c[1, j]) * x + c[0, j]
+
+
+@kernel
+def _executed_rows(coefficients, offsets, rx, ry, offset, upper, forearm_sq, coplanar,
+                   values):
+    """
+    Fill ``values`` (S, M, 5) as :func:`_executed_values`; return the first failed row or -1.
+
+    The quintic and its derivatives are :func:`_horner`'s, the TCP derivatives
+    :func:`~ellipath_ros.core.kinematics.tcp_derivatives`' and the norms sum the squares
+    as ``einsum`` does on AVX2 ((x^2 + z^2) + y^2), all in the same order, so the values
+    equal the vectorised ones bit for bit.
+    """
+    segments, count = offsets.shape
+    rows = segments * count
+    joints = np.empty((4, rows, 3))
+    for segment in range(segments):
+        c = coefficients[segment]
+        for sample in range(count):
+            x = offsets[segment, sample]
+            row = segment * count + sample
+            for j in range(3):
+                joints[0, row, j] = _quintic(c, j, x)
+                joints[1, row, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x
+                                       + 3.0 * c[3, j]) * x + 2.0 * c[2, j]) * x + c[1, j])
+                joints[2, row, j] = (((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x
+                                      + 6.0 * c[3, j]) * x + 2.0 * c[2, j])
+                joints[3, row, j] = (60.0 * c[5, j] * x + 24.0 * c[4, j]) * x + 6.0 * c[3, j]
+    tcp = np.empty((4, rows, 3))
+    scratch = (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
+               np.empty((3, 3)), np.empty(3), np.empty(3))
+    failed = -1
+    for row in range(rows):
+        state = _tcp_row(joints[0], joints[1], joints[2], joints[3], row, rx, ry, offset, upper,
+                         forearm_sq, coplanar, tcp[0], tcp[1], tcp[2], tcp[3], scratch)
+        if state != _ASSEMBLED and failed < 0:
+            failed = row
+        segment, sample = row // count, row % count
+        for key in range(3):
+            x, y, z = tcp[key + 1, row, 0], tcp[key + 1, row, 1], tcp[key + 1, row, 2]
+            values[segment, sample, key] = math.sqrt((x * x + z * z) + y * y)
+        for key in range(2):
+            rates = joints[key + 1]
+            values[segment, sample, 3 + key] = max(abs(rates[row, 0]), abs(rates[row, 1]),
+                                                   abs(rates[row, 2]))
+    return failed
 
 
 def _segment_peaks(coefficients, lengths, geometry, samples):

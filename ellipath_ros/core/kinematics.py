@@ -35,6 +35,7 @@ also carries that index as its ``index`` attribute.
 from dataclasses import dataclass
 import math
 
+from ellipath_ros.core.compiled import kernel
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
@@ -50,6 +51,9 @@ _AZIMUTHS = 2.0 * np.pi * np.arange(3) / 3.0
 # Row i: radial unit vector e_i, tangential unit vector t_i of arm i.
 _RADIAL = np.stack([np.cos(_AZIMUTHS), np.sin(_AZIMUTHS), np.zeros(3)], axis=1)
 _TANGENT = np.stack([-np.sin(_AZIMUTHS), np.cos(_AZIMUTHS), np.zeros(3)], axis=1)
+# Their x and y columns, contiguous, for the compiled loops.
+_RADIAL_X, _RADIAL_Y = (np.ascontiguousarray(_RADIAL[:, axis]) for axis in (0, 1))
+_TANGENT_X, _TANGENT_Y = (np.ascontiguousarray(_TANGENT[:, axis]) for axis in (0, 1))
 
 
 @dataclass(frozen=True)
@@ -347,60 +351,42 @@ def forward_kinematics(q, geometry, *, name='q', strict=True):
     return points[0] if single else points
 
 
-def _cross(a, b):
-    """Row-wise cross product of two (N, 3) arrays (np.cross is slow on small arrays)."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
 def _forward(q, geometry, name, strict=True):
     """
-    Vectorised three-sphere intersection; see :func:`forward_kinematics`.
+    Three-sphere intersection of every row; see :func:`forward_kinematics`.
 
-    Written per coordinate on arrays of shape (N,): the sphere centres have
-    fixed azimuths, so no (N, 3, 3) temporaries are needed.
+    The centre of forearm sphere i is ``(radial_i cos az_i, radial_i sin az_i, height_i)``;
+    with ``a = c0 - c2`` and ``b = c1 - c2`` the circumcentre lies at
+    ``((|a|^2 b - |b|^2 a) x n) / (2 |n|^2)`` from c2 (``n = a x b``), and the effector
+    below it along the unit normal (:func:`_forward_row`).
     """
-    upper = geometry.upper_arm
-    radial = geometry.base_radius - geometry.effector_radius + upper * np.cos(q)  # (N, 3)
-    height = -upper * np.sin(q)
-    # Centre i = (radial_i cos az_i, radial_i sin az_i, height_i); a = c0 - c2, b = c1 - c2.
-    cx = radial * _RADIAL[:, 0]
-    cy = radial * _RADIAL[:, 1]
-    ax, ay, az = cx[:, 0] - cx[:, 2], cy[:, 0] - cy[:, 2], height[:, 0] - height[:, 2]
-    bx, by, bz = cx[:, 1] - cx[:, 2], cy[:, 1] - cy[:, 2], height[:, 1] - height[:, 2]
-    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    normal_sq = nx * nx + ny * ny + nz * nz
-    a_sq = ax * ax + ay * ay + az * az
-    b_sq = bx * bx + by * by + bz * bz
-    # Collinear centres leave the intersection undefined (a x b vanishes).
-    collinear = normal_sq <= (1e-12 * np.sqrt(a_sq * b_sq)) ** 2
-    safe_sq = np.where(collinear, 1.0, normal_sq)
-    # to_centre = ((|a|^2 b - |b|^2 a) x n) / (2 |n|^2): from centre 2 to the circumcentre.
-    ux, uy, uz = a_sq * bx - b_sq * ax, a_sq * by - b_sq * ay, a_sq * bz - b_sq * az
-    scale = 0.5 / safe_sq
-    tx, ty, tz = ((uy * nz - uz * ny) * scale, (uz * nx - ux * nz) * scale,
-                  (ux * ny - uy * nx) * scale)
-    height_sq = geometry.forearm ** 2 - (tx * tx + ty * ty + tz * tz)
-    # Unit normal pointing up, times the distance from the circumcentre down to the effector.
-    down = np.sqrt(np.maximum(height_sq, 0.0)) / np.sqrt(safe_sq)
-    down = np.where(nz < 0.0, -down, down)
-    points = np.stack((cx[:, 2] + tx - down * nx, cy[:, 2] + ty - down * ny,
-                       height[:, 2] + tz - down * nz), axis=1)
-    bad = collinear | (height_sq < 0.0) | (points[:, 2] >= 0.0)
-    if not strict:
-        points[bad] = np.nan
-    elif bad.any():
-        index = int(np.argmax(bad))
-        if collinear[index]:
-            why = 'the three forearm spheres have collinear centres'
-        elif height_sq[index] < 0.0:
-            why = 'the three forearms cannot meet at one effector'
-        else:
-            why = 'the effector would be above the base plane'
-        raise _unreachable(f'{name}[{index}]: expected joint angles of an assembled robot, '
-                           f'got {_fmt(q[index])} rad: {why}', index)
+    q = np.ascontiguousarray(q, dtype=float)
+    points = np.empty(q.shape)
+    status = np.empty(q.shape[0], dtype=np.int8)
+    _forward_rows(q, *_kernel_geometry(geometry)[:5], points, status)
+    if strict:
+        _raise_unassembled(q, status, name)
     return points
+
+
+def _kernel_geometry(geometry):
+    """Return the dimensions the compiled rows take, in :func:`_tcp_row`'s order."""
+    return (_RADIAL_X, _RADIAL_Y, geometry.base_radius - geometry.effector_radius,
+            geometry.upper_arm, geometry.forearm ** 2,
+            _SINGULARITY_TOLERANCE * geometry.forearm ** 3)
+
+
+def _raise_unassembled(q, status, name):
+    """Raise for the first row of ``status`` that could not be assembled, if any."""
+    bad = (status != _ASSEMBLED) & (status != _COPLANAR)
+    if not bad.any():
+        return
+    index = int(np.argmax(bad))
+    why = {_COLLINEAR: 'the three forearm spheres have collinear centres',
+           _APART: 'the three forearms cannot meet at one effector',
+           _ABOVE: 'the effector would be above the base plane'}[int(status[index])]
+    raise _unreachable(f'{name}[{index}]: expected joint angles of an assembled robot, '
+                       f'got {_fmt(q[index])} rad: {why}', index)
 
 
 def _arm_vectors(points, q, geometry):
@@ -598,18 +584,48 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
         _same_shape(extra_name, array, points, name)
         converted.append(array)
     velocities, accelerations = converted
+    q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
+    failed = _joint_rows(
+        np.ascontiguousarray(points), np.ascontiguousarray(velocities),
+        np.ascontiguousarray(accelerations), *_joint_geometry(geometry), q, qdot, qddot)
+    if failed >= 0:
+        _raise_joint_failure(points, geometry, name)
+    if single:
+        return q[0], qdot[0], qddot[0]
+    return q, qdot, qddot
+
+
+def assembled_joint_rates(points, velocities, geometry):
+    """
+    Return :func:`joint_motion`'s ``(q, q_dot)`` of finite (N, 3) rows, or None if one fails.
+
+    Nothing is raised: a row out of reach, beyond a joint limit or at an IK
+    singularity gives None, for the caller to name it its own way.
+    """
+    points = np.ascontiguousarray(points, dtype=float)
+    q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
+    failed = _joint_rows(
+        points, np.ascontiguousarray(velocities, dtype=float), np.zeros(points.shape),
+        *_joint_geometry(geometry), q, qdot, qddot)
+    return None if failed >= 0 else (q, qdot)
+
+
+def _joint_geometry(geometry):
+    """Return the arm directions and dimensions :func:`_joint_rows` takes, in its order."""
+    return (_RADIAL_X, _RADIAL_Y, _TANGENT_X, _TANGENT_Y,
+            geometry.base_radius - geometry.effector_radius, geometry.upper_arm,
+            geometry.forearm, geometry.joint_min, geometry.joint_max,
+            _SINGULARITY_TOLERANCE * (geometry.upper_arm * geometry.forearm))
+
+
+def _raise_joint_failure(points, geometry, name):
+    """Raise the error of :func:`joint_motion` for ``points`` (one of them has failed)."""
     q, discriminant, u, w = _solve_ik(points, geometry)
     failure = _ik_failure(points, geometry, q, discriminant, u, w, name)
     if failure is not None:
         raise failure
-    forearm, d_elbow, dd_elbow = _arm_vectors(points, q, geometry)
-    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
-    qdot = _velocity_rates(forearm, diagonal, velocities)
-    qddot = _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities,
-                                accelerations, qdot)
-    if single:
-        return q[0], qdot[0], qddot[0]
-    return q, qdot, qddot
+    forearm, d_elbow, _ = _arm_vectors(points, q, geometry)
+    _ik_diagonal(forearm, d_elbow, geometry, name)
 
 
 def _velocity_rates(forearm, diagonal, velocities):
@@ -664,39 +680,218 @@ def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
         coplanar (``|det A| / L2^3`` below 1e-6).
 
     """
-    q = np.asarray(q, dtype=float)
-    points = _forward(q, geometry, name, strict)
-    # Forearm s = p + r e - B (B the elbow), b = dB/dq and c = d2B/dq2, per coordinate.
-    s, b, c = _arm_vectors(points, q, geometry)
-    # Columns of A^-1 (A has the rows s_0, s_1, s_2) times det A: s_1 x s_2, s_2 x s_0, s_0 x s_1.
-    columns = [_cross_of(s, first, second) for first, second in ((1, 2), (2, 0), (0, 1))]
-    determinant = sum(s[axis][:, 0] * columns[0][axis] for axis in range(3))
-    singular = np.abs(determinant) < _SINGULARITY_TOLERANCE * geometry.forearm ** 3
-    if strict and singular.any():
-        index = int(np.argmax(singular))
-        raise _unreachable(
-            f'{name}[{index}]: expected joint angles away from singularities, got '
-            f'{_fmt(q[index])} rad where the forearms are coplanar', index)
-    inverse_det = 1.0 / np.where(singular, np.nan, determinant)
-
-    def solve(rhs):
-        return np.stack([(rhs[:, 0] * columns[0][axis] + rhs[:, 1] * columns[1][axis]
-                          + rhs[:, 2] * columns[2][axis]) * inverse_det
-                         for axis in range(3)], axis=1)
-
-    s_b, s_c = _dot(s, b), _dot(s, c)
-    velocity = solve(s_b * qdot)
-    s_rate = tuple(velocity[:, axis:axis + 1] - b[axis] * qdot for axis in range(3))
-    acceleration = solve(s_c * qdot * qdot + s_b * qddot - _dot(s_rate, s_rate))
-    s_accel = tuple(acceleration[:, axis:axis + 1] - c[axis] * qdot * qdot - b[axis] * qddot
-                    for axis in range(3))
-    jerk = solve(s_b * (qdddot - qdot ** 3) + 3.0 * s_c * qdot * qddot
-                 - 3.0 * _dot(s_rate, s_accel))
+    q = np.ascontiguousarray(q, dtype=float)
+    rates = [np.ascontiguousarray(value, dtype=float) for value in (qdot, qddot, qdddot)]
+    points, velocity, acceleration, jerk = (np.empty(q.shape) for _ in range(4))
+    status = np.empty(q.shape[0], dtype=np.int8)
+    _tcp_rows(q, *rates, *_kernel_geometry(geometry), points, velocity, acceleration, jerk,
+              status)
+    if strict:
+        _raise_unassembled(q, status, name)
+        if (status == _COPLANAR).any():
+            index = int(np.argmax(status == _COPLANAR))
+            raise _unreachable(
+                f'{name}[{index}]: expected joint angles away from singularities, got '
+                f'{_fmt(q[index])} rad where the forearms are coplanar', index)
     return points, velocity, acceleration, jerk
 
 
-def _cross_of(s, first, second):
-    """Return the coordinates of s_first x s_second, s given per coordinate as (N, 3) arms."""
-    x, y, z = (value[:, first] for value in s)
-    u, v, w = (value[:, second] for value in s)
-    return (y * w - z * v, z * u - x * w, x * v - y * u)
+# Compiled per-row forms of the vectorised formulas below: the same IEEE operations in the
+# same order (see compiled.py), so their results equal the NumPy ones bit for bit, without
+# the NumPy call per operation that made a few hundred rows cost as much as a million.
+# Status codes of a row, in the order the errors are reported.
+_ASSEMBLED, _COLLINEAR, _APART, _ABOVE, _COPLANAR = range(5)
+
+
+@kernel
+def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, points, row):
+    """Write the TCP of joint angles (q0, q1, q2) into ``points[row]``; return its status."""
+    radial0 = offset + upper * math.cos(q0)
+    radial1 = offset + upper * math.cos(q1)
+    radial2 = offset + upper * math.cos(q2)
+    height0 = -upper * math.sin(q0)
+    height1 = -upper * math.sin(q1)
+    height2 = -upper * math.sin(q2)
+    cx2, cy2 = radial2 * rx[2], radial2 * ry[2]
+    ax, ay, az = radial0 * rx[0] - cx2, radial0 * ry[0] - cy2, height0 - height2
+    bx, by, bz = radial1 * rx[1] - cx2, radial1 * ry[1] - cy2, height1 - height2
+    nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    normal_sq = nx * nx + ny * ny + nz * nz
+    a_sq = ax * ax + ay * ay + az * az
+    b_sq = bx * bx + by * by + bz * bz
+    collinear = normal_sq <= (1e-12 * math.sqrt(a_sq * b_sq)) ** 2
+    safe_sq = 1.0 if collinear else normal_sq
+    ux, uy, uz = a_sq * bx - b_sq * ax, a_sq * by - b_sq * ay, a_sq * bz - b_sq * az
+    scale = 0.5 / safe_sq
+    tx, ty, tz = ((uy * nz - uz * ny) * scale, (uz * nx - ux * nz) * scale,
+                  (ux * ny - uy * nx) * scale)
+    height_sq = forearm_sq - (tx * tx + ty * ty + tz * tz)
+    # NaN stays NaN, as np.maximum keeps it.
+    down = math.sqrt(0.0 if height_sq < 0.0 else height_sq) / math.sqrt(safe_sq)
+    if nz < 0.0:
+        down = -down
+    points[row, 0] = cx2 + tx - down * nx
+    points[row, 1] = cy2 + ty - down * ny
+    points[row, 2] = height2 + tz - down * nz
+    if collinear:
+        return _COLLINEAR
+    if height_sq < 0.0:
+        return _APART
+    if points[row, 2] >= 0.0:
+        return _ABOVE
+    return _ASSEMBLED
+
+
+@kernel
+def _forward_rows(q, rx, ry, offset, upper, forearm_sq, points, status):
+    """:func:`_forward_row` of every row of ``q`` (N, 3); unassembled rows get NaN."""
+    for row in range(q.shape[0]):
+        status[row] = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper,
+                                   forearm_sq, points, row)
+        if status[row] != _ASSEMBLED:
+            points[row, :] = np.nan
+
+
+@kernel
+def _tcp_rows(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplanar, points,
+              velocity, acceleration, jerk, status):
+    """
+    Per row, :func:`tcp_derivatives`: position, velocity, acceleration, jerk; status.
+
+    A row that cannot be assembled is NaN throughout; a coplanar one (``|det A|``
+    below ``coplanar``) has NaN derivatives, as ``1 / NaN`` gives in the vectorised form.
+    """
+    scratch = (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
+               np.empty((3, 3)), np.empty(3), np.empty(3))
+    for row in range(q.shape[0]):
+        status[row] = _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq,
+                               coplanar, points, velocity, acceleration, jerk,
+                               scratch)
+
+
+@kernel
+def _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq, coplanar, points,
+             velocity, acceleration, jerk, scratch):
+    """
+    :func:`tcp_derivatives` of row ``row`` of the (N, 3) arrays; return its status.
+
+    ``scratch`` holds work arrays: the forearm vectors s, the elbow derivatives b and c
+    (``[axis, arm]``), the columns of ``A^-1 det A`` (``[k, axis]``), the forearm rates
+    (3, 3) each, a right-hand side and a forearm acceleration (3,).
+    """
+    s, b, c, columns, rate, rhs, accel = scratch
+    state = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper, forearm_sq,
+                         points, row)
+    if state != _ASSEMBLED:
+        points[row, :] = np.nan
+    px, py, pz = points[row, 0], points[row, 1], points[row, 2]
+    for arm in range(3):
+        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+        reach = -offset - upper * cos_q
+        upper_sin, upper_cos = upper * sin_q, upper * cos_q
+        s[0, arm] = px + reach * rx[arm]
+        s[1, arm] = py + reach * ry[arm]
+        s[2, arm] = pz + upper_sin
+        b[0, arm] = -upper_sin * rx[arm]
+        b[1, arm] = -upper_sin * ry[arm]
+        b[2, arm] = -upper_cos
+        c[0, arm] = -upper_cos * rx[arm]
+        c[1, arm] = -upper_cos * ry[arm]
+        c[2, arm] = upper_sin
+    for k in range(3):
+        first, second = (k + 1) % 3, (k + 2) % 3
+        x, y, z = s[0, first], s[1, first], s[2, first]
+        u, v, w = s[0, second], s[1, second], s[2, second]
+        columns[k, 0] = y * w - z * v
+        columns[k, 1] = z * u - x * w
+        columns[k, 2] = x * v - y * u
+    determinant = 0.0 + s[0, 0] * columns[0, 0] + s[1, 0] * columns[0, 1] + (
+        s[2, 0] * columns[0, 2])
+    singular = abs(determinant) < coplanar
+    if singular and state == _ASSEMBLED:
+        state = _COPLANAR
+    inverse_det = 1.0 / (np.nan if singular else determinant)
+    for arm in range(3):
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        rhs[arm] = s_b * qdot[row, arm]
+    _solve(columns, rhs, inverse_det, velocity, row)
+    for arm in range(3):
+        for axis in range(3):
+            rate[axis, arm] = velocity[row, axis] - b[axis, arm] * qdot[row, arm]
+        rate_sq = (rate[0, arm] * rate[0, arm] + rate[1, arm] * rate[1, arm]
+                   + rate[2, arm] * rate[2, arm])
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
+        rhs[arm] = s_c * qdot[row, arm] * qdot[row, arm] + s_b * qddot[row, arm] - rate_sq
+    _solve(columns, rhs, inverse_det, acceleration, row)
+    for arm in range(3):
+        w_dot, w_ddot = qdot[row, arm], qddot[row, arm]
+        for axis in range(3):
+            accel[axis] = (acceleration[row, axis] - c[axis, arm] * w_dot * w_dot
+                           - b[axis, arm] * w_ddot)
+        rate_accel = (rate[0, arm] * accel[0] + rate[1, arm] * accel[1]
+                      + rate[2, arm] * accel[2])
+        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
+        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
+        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot ** 3.0) + 3.0 * s_c * w_dot * w_ddot
+                    - 3.0 * rate_accel)
+    _solve(columns, rhs, inverse_det, jerk, row)
+    return state
+
+
+@kernel
+def _solve(columns, rhs, inverse_det, out, row):
+    """Write A^-1 rhs (``columns`` of A^-1 det A, ``inverse_det`` = 1 / det A) to out[row]."""
+    for axis in range(3):
+        out[row, axis] = (rhs[0] * columns[0, axis] + rhs[1] * columns[1, axis]
+                          + rhs[2] * columns[2, axis]) * inverse_det
+
+
+@kernel
+def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper, forearm,
+                joint_min, joint_max, singular_diagonal, q, qdot, qddot):
+    """
+    Per row, :func:`joint_motion`'s IK and rates; return the first row that fails, or -1.
+
+    A failing row (out of reach, beyond a joint limit, at an IK singularity) stops the
+    loop: the caller names it with the vectorised form's messages.
+    """
+    fore_sq = forearm * forearm
+    upper_sq = upper * upper
+    for row in range(points.shape[0]):
+        x, y, z = points[row, 0], points[row, 1], points[row, 2]
+        if z >= 0.0:
+            return row
+        for arm in range(3):
+            u = x * rx[arm] + y * ry[arm] + -offset
+            w = x * tx[arm] + y * ty[arm]
+            g = u * u + w * w + z * z + upper_sq - fore_sq
+            discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
+            if discriminant < 0.0:
+                return row
+            angle = -math.atan2(z, u) - math.atan2(math.sqrt(discriminant), g)
+            if angle < joint_min or angle > joint_max:
+                return row
+            q[row, arm] = angle
+        for arm in range(3):
+            cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+            reach = -offset - upper * cos_q
+            upper_sin, upper_cos = upper * sin_q, upper * cos_q
+            sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
+            bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
+            diagonal = sx * bx + sy * by + sz * bz
+            if abs(diagonal) < singular_diagonal:
+                return row
+            rate = (sx * velocities[row, 0] + sy * velocities[row, 1]
+                    + sz * velocities[row, 2]) / diagonal
+            qdot[row, arm] = rate
+            rate_x = velocities[row, 0] - bx * rate
+            rate_y = velocities[row, 1] - by * rate
+            rate_z = velocities[row, 2] - bz * rate
+            numerator = (sx * accelerations[row, 0] + sy * accelerations[row, 1]
+                         + sz * accelerations[row, 2]
+                         + (rate_x * rate_x + rate_y * rate_y + rate_z * rate_z)
+                         - (sx * (-upper_cos * rx[arm]) + sy * (-upper_cos * ry[arm])
+                            + sz * upper_sin) * rate * rate)
+            qddot[row, arm] = numerator / diagonal
+    return -1

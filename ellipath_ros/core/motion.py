@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
 from .joint_trajectory import _nearest_sample
@@ -53,11 +54,25 @@ class _JerkPieces:
 
     def state(self, t):
         """Return (s, v, a, j), each shaped like ``t`` (N,)."""
-        index = np.clip(np.searchsorted(self.times, t, side='right') - 1, 0, self.jerk.size - 1)
-        x = t - self.times[index]
-        j, a, v = self.jerk[index], self.a0[index], self.v0[index]
-        return (self.s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)),
-                v + x * (a + x * j / 2.0), a + x * j, j)
+        t = np.asarray(t, dtype=float)
+        state = np.empty((4, t.size))
+        _piece_states(self.times, self.s0, self.v0, self.a0, self.jerk,
+                      np.ascontiguousarray(t).reshape(-1), state)
+        return tuple(row.reshape(t.shape) for row in state)
+
+
+@kernel
+def _piece_states(times, s0, v0, a0, jerk, t, state):
+    """Fill ``state`` (4, N) with :meth:`_JerkPieces.state` at ``t`` (N,)."""
+    last = jerk.size - 1
+    for row in range(t.size):
+        index = min(max(np.searchsorted(times, t[row], side='right') - 1, 0), last)
+        x = t[row] - times[index]
+        j, a, v = jerk[index], a0[index], v0[index]
+        state[0, row] = s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0))
+        state[1, row] = v + x * (a + x * j / 2.0)
+        state[2, row] = a + x * j
+        state[3, row] = j
 
 
 class _PieceList:
@@ -408,10 +423,24 @@ class TimedMotion:
 def _cartesian(path, s, v, a, j):
     """Return position, velocity, acceleration and jerk (N, 3) from the path state."""
     # On coordinate rows (3, N): the products with the per-sample factors run along the samples.
-    position, tangent, curvature, rate = path.rows_at_lengths(s)
-    return tuple(np.ascontiguousarray(rows.T) for rows in (
-        position, v * tangent, a * tangent + (v * v) * curvature,
-        j * tangent + (3.0 * v * a) * curvature + (v ** 3) * rate))
+    states = np.empty((4, s.size, 3))
+    _cartesian_rows(*path.rows_at_lengths(s), v, a, j, states)
+    return tuple(states)
+
+
+@kernel
+def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
+    """Fill ``states`` (4, N, 3) from the path's rows (3, N) and its law's v, a, j (N,)."""
+    for row in range(v.size):
+        speed, accel, jerk = v[row], a[row], j[row]
+        for axis in range(3):
+            states[0, row, axis] = position[axis, row]
+            states[1, row, axis] = speed * tangent[axis, row]
+            states[2, row, axis] = (accel * tangent[axis, row]
+                                    + (speed * speed) * curvature[axis, row])
+            states[3, row, axis] = (jerk * tangent[axis, row]
+                                    + (3.0 * speed * accel) * curvature[axis, row]
+                                    + (speed ** 3.0) * rate[axis, row])
 
 
 def _sample_times(duration, period):

@@ -37,8 +37,8 @@ from .joint_trajectory import (
     MotionSamples, on_whole_nanoseconds, quintic_interpolate, quintic_positions,
     sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    DeltaGeometry, forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
-    largest_magnitude_per_row)
+    assembled_joint_rates, DeltaGeometry, forward_kinematics, inverse_kinematics,
+    joint_velocities, JointLimits, largest_magnitude_per_row, reachable)
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
@@ -291,9 +291,15 @@ def _check_reach_and_speed_cap(path, config):
     count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
     samples = path.at_lengths(s)
-    points = np.vstack((samples.position, path.apex))
-    q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
-    dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
+    rates = assembled_joint_rates(samples.position, samples.tangent, config.geometry)
+    if rates is None or not reachable(path.apex, config.geometry):
+        # Named as always: the first of the samples and the apex out of reach, else the first
+        # sample at a singularity.
+        points = np.vstack((samples.position, path.apex))
+        q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
+        dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
+    else:
+        dq_ds = rates[1]
     caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
         largest_magnitude_per_row(dq_ds), 1e-12)
 

@@ -1,0 +1,163 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The curvature profile's compiled and tabulated parts against plain computations of the same."""
+
+from ellipath_ros.core.curvature_profile import (
+    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, curvature_nodes)
+from ellipath_ros.core.geometry import EllipticArc, plan_path, radius_of_curvature_derivatives
+import numpy as np
+import pytest
+
+# (l, h, k) [m]: the paper's example, a round arc, a thin one (a/b about 31, beyond the p99
+# of random pairs) and a thin steep one.
+ARCS = [(0.15, 0.025, 0.1), (0.15, 0.0, 0.15), (0.3, 0.05, 0.01), (0.3, -0.1, 0.02)]
+GL_NODES, GL_WEIGHTS = np.polynomial.legendre.leggauss(40)
+
+
+def elapsed_by_quadrature(arc, rate, theta_start, theta):
+    """Return t(theta) = (a b / K) * integral of sigma**-3 from theta to theta_start."""
+    edges = np.linspace(theta_start, theta, 129)
+    half = 0.5 * (edges[1:] - edges[:-1])
+    nodes = 0.5 * (edges[1:] + edges[:-1])[:, None] + half[:, None] * GL_NODES
+    sigma = np.sqrt((arc.a * np.sin(nodes)) ** 2 + (arc.b * np.cos(nodes)) ** 2)
+    return arc.a * arc.b / rate * float(np.sum(np.abs(half)[:, None] * sigma ** -3 * GL_WEIGHTS))
+
+
+def law_on(l_, h, k, start_share=0.0, end_share=1.0, rate=3.0):
+    arc = EllipticArc(l_, h, k)
+    return _CurvatureArcLaw(arc, rate, 0.025, arc.theta_T1 - start_share * np.pi,
+                            arc.theta_T1 - end_share * np.pi)
+
+
+@pytest.mark.parametrize('shares', [(0.0, 1.0), (0.02, 0.9)])
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_theta_of_t_inverts_the_elapsed_time(l_, h, k, shares):
+    """The interpolated theta(t) lies on t(theta) computed by another quadrature."""
+    law = law_on(l_, h, k, *shares)
+    t = np.random.default_rng(7).uniform(0.0, law.duration, 60)
+    theta = law.theta(t)
+    elapsed = np.array([elapsed_by_quadrature(law.arc, law.rate, law.theta_start, value)
+                        for value in theta])
+    _, speed, _, _ = law.state(t)
+    # As a distance along the path: within 1e-12 m (the table's own error is ~1e-13 m).
+    assert np.max(np.abs(elapsed - t) * speed) < 1e-12
+    assert law.duration == pytest.approx(
+        elapsed_by_quadrature(law.arc, law.rate, law.theta_start, law.theta_end), rel=1e-12)
+
+
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_states_follow_the_rule_at_the_interpolated_theta(l_, h, k):
+    """The law's s is the arc length to theta(t); s', s'' and s''' follow the rule's rates."""
+    law = law_on(l_, h, k)
+    arc = law.arc
+    t = np.linspace(0.0, law.duration, 2001)
+    theta = law.theta(t)
+    s, speed, accel, jerk = law.state(t)
+    np.testing.assert_allclose(s, 0.025 + arc.s_from_t(arc.t_from_theta(theta)), rtol=0.0,
+                               atol=1e-12)
+    sigma = np.sqrt((arc.a * np.sin(theta)) ** 2 + (arc.b * np.cos(theta)) ** 2)
+    np.testing.assert_allclose(speed, law.rate * sigma ** 4 / (arc.a * arc.b), rtol=1e-13)
+    # s', s'' and s''' against central differences of s, s' and s'' (a step small beside the
+    # panels; the bound covers the differences' own truncation error).
+    step = 1e-6 * law.duration
+    inner = t[1:-1]
+    ahead, behind = law.state(inner + step), law.state(inner - step)
+    for row, rate in enumerate((speed, accel, jerk)):
+        np.testing.assert_allclose((ahead[row] - behind[row]) / (2 * step), rate[1:-1],
+                                   rtol=0.0, atol=1e-4 * np.max(np.abs(rate)) + 1e-9)
+
+
+def test_law_ends_on_its_bounds_and_clips_outside():
+    law = law_on(*ARCS[0], 0.02, 0.9)
+    theta = law.theta(np.array([-1.0, 0.0, law.duration, law.duration + 1.0]))
+    assert theta[0] == theta[1] == law.theta_start
+    assert theta[2] == theta[3] == pytest.approx(law.theta_end, abs=1e-14)
+
+
+def test_order_of_the_times_does_not_change_the_states():
+    """Sorted times step from panel to panel, others bisect: the same numbers either way."""
+    law = law_on(*ARCS[2])
+    t = np.random.default_rng(3).uniform(0.0, law.duration, 500)
+    order = np.argsort(t)
+    for shuffled, ordered in zip(law.state(t), law.state(t[order])):
+        assert np.array_equal(shuffled[order], ordered)
+
+
+def nodes_by_geometry(arc, r):
+    """Return the paper's Steps 3-8 as a plain loop over geometry's radius of curvature."""
+    theta, nodes = arc.theta_T1, [arc.theta_T1]
+    while theta > arc.theta_T2:
+        theta -= r * float(arc.radius_of_curvature(theta))
+        nodes.append(theta)
+    nodes[-1] = arc.theta_T2
+    return np.array(nodes)
+
+
+@pytest.mark.parametrize('r', [0.77, 0.05, 3.0])
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_compiled_node_list_is_the_plain_loop_bit_for_bit(l_, h, k, r):
+    arc = EllipticArc(l_, h, k)
+    assert np.array_equal(curvature_nodes(arc, r), nodes_by_geometry(arc, r))
+
+
+def peaks_by_geometry(arc, theta):
+    """Return |v|, |a|, |j| of the rule at K = 1 from geometry's functions, in NumPy."""
+    rho, rho_1, rho_2 = radius_of_curvature_derivatives(arc.a, arc.b, theta)
+    w1, w2, w3 = -rho, rho * rho_1, -rho * (rho_1 ** 2 + rho * rho_2)
+    p = arc.point(arc.t_from_theta(theta))
+    d1 = arc.derivative(arc.t_from_theta(theta))
+    velocity = d1 * w1[:, None]
+    accel = -p * (w1 ** 2)[:, None] + d1 * w2[:, None]
+    jerk = -d1 * (w1 ** 3)[:, None] - 3.0 * p * (w1 * w2)[:, None] + d1 * w3[:, None]
+    return [np.linalg.norm(value, axis=1) for value in (velocity, accel, jerk)]
+
+
+@pytest.mark.parametrize('l_,h,k', ARCS)
+def test_compiled_peaks_are_numpys_bit_for_bit(l_, h, k):
+    """K (hence every duration) depends on these maxima: the kernel must not move them."""
+    arc = EllipticArc(l_, h, k)
+    theta = np.linspace(arc.theta_T1, arc.theta_T2, 1001)
+    found = _arc_cartesian_peaks(arc, theta)
+    for value, expected in zip(found[:3], peaks_by_geometry(arc, theta)):
+        assert np.array_equal(value, expected)
+    sigma, sigma_1, _ = arc.sigma(theta)
+    np.testing.assert_allclose(found[3], sigma, rtol=1e-15)
+    np.testing.assert_allclose(found[4], sigma_1, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize('cap_name', ['falling', 'dip', 'constant'])
+def test_speed_cap_rate_is_the_minimum_over_all_samples(cap_name):
+    """The shortlist by approximate arc length finds the exact minimum of cap(s) / speed."""
+    path = plan_path([0, 0, -0.8], [0.3, 0, -0.75])
+    arc = path.arc
+    c1 = path.segment_lengths[0]
+    caps = {'falling': lambda s: 3.0 - 4.0 * s,
+            'dip': lambda s: 1.0 + 50.0 * (s - c1 - 0.1234) ** 2,
+            'constant': lambda s: np.full_like(s, 2.0)}
+    theta = np.linspace(arc.theta_T1, arc.theta_T2, 4001)
+    speed, _, _, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
+    s = c1 + arc.s_from_t(arc.t_from_theta(theta))
+    expected = np.min(caps[cap_name](s) / speed)
+    found = _cap_rate(path, caps[cap_name], theta, speed, sigma, sigma_1)
+    assert found == pytest.approx(expected, rel=1e-14)
+
+
+def test_law_at_another_rate_keeps_the_time_table_bit_for_bit():
+    law = law_on(*ARCS[0], rate=1.0)
+    for rate in (0.37, 3.0):
+        reused = law.at_rate(rate, 0.01)
+        fresh = _CurvatureArcLaw(law.arc, rate, 0.01, law.theta_start, law.theta_end)
+        assert np.array_equal(reused._times, fresh._times)
+        assert reused.duration == pytest.approx(law.duration / rate, rel=1e-14)
