@@ -149,9 +149,11 @@ def _start_node(namespace, domain_id, log):
                PYTHONUNBUFFERED='1',
                PYTHONPATH=os.pathsep.join(filter(None, [package_root,
                                                         env.get('PYTHONPATH')])))
+    # Run from the package's root too: ``-m`` puts the working directory first on the path, and
+    # a checkout there would be another copy, whose kernels numba compiles (and caches) anew.
     return subprocess.Popen(
         [sys.executable, '-m', 'ellipath_ros.node', '--ros-args', '-r', f'__ns:={namespace}'],
-        env=env, stdout=log, stderr=subprocess.STDOUT)
+        env=env, stdout=log, stderr=subprocess.STDOUT, cwd=package_root)
 
 
 def _tail(node_process, log, lines=10):
