@@ -20,26 +20,34 @@ import sys
 import textwrap
 
 # Run in a fresh interpreter (this one may have called the kernels already): warm up, then
-# plan requests with both joins; list each kernel whose compiled forms changed meanwhile (a
-# kernel first called from Python compiles, or loads from the cache, on that call).
+# plan requests with both joins and both profiles and a belt pick; list each kernel of the
+# core whose compiled forms changed meanwhile (a kernel first called from Python compiles, or
+# loads from the cache, on that call).
 SCRIPT = textwrap.dedent("""
-    import dataclasses, json
+    import dataclasses, importlib, json, pkgutil
     import numpy as np
+    import ellipath_ros.core
     from ellipath_ros.bench.latency import random_pairs
-    from ellipath_ros.core import arc_scan, optimal_profile, planner
+    from ellipath_ros.core import planner
     from ellipath_ros.core.compiled import warm_up
+    from ellipath_ros.core.conveyor import Conveyor, plan_belt_cycle
     from ellipath_ros.core.errors import EllipathError
+
+    # Every module of the core: the kernels of the scan, the evaluation and the profiles.
+    modules = [importlib.import_module(f'ellipath_ros.core.{found.name}')
+               for found in pkgutil.iter_modules(ellipath_ros.core.__path__)]
 
     def forms():
         return {f'{module.__name__}.{name}': len(value.overloads)
-                for module in (arc_scan, optimal_profile)
+                for module in modules
                 for name, value in vars(module).items() if hasattr(value, 'overloads')}
 
     first, again = warm_up(), warm_up()
     before = forms()
     plans = 0
-    for join in ('g2', 'paper'):
-        config = dataclasses.replace(planner.PlannerConfig(), join=join)
+    for settings in ({'join': 'g2'}, {'join': 'paper'},
+                     {'join': 'paper', 'profile': 'curvature'}):
+        config = dataclasses.replace(planner.PlannerConfig(), **settings)
         start = np.array([0.0, 0.0, -0.8])
         for pick, place in random_pairs(12):
             try:
@@ -47,6 +55,11 @@ SCRIPT = textwrap.dedent("""
                 plans += 1
             except EllipathError:
                 pass
+    belt = Conveyor(velocity=np.array([0.3, 0.0, 0.0]), window_upstream=-0.3,
+                    window_downstream=0.3)
+    plan_belt_cycle(np.array([0.12, 0.18, -0.78]), np.array([-0.2, 0.05, -0.85]),
+                    np.array([0.15, 0.2, -0.8]), planner.PlannerConfig(), belt,
+                    pick_dwell=0.05, latch_time=0.0, start_time=0.02)
     after = forms()
     print(json.dumps({'first': first, 'again': again, 'plans': plans, 'kernels': len(before),
                       'changed': sorted(name for name in after if after[name] != before[name])}))
@@ -58,5 +71,5 @@ def test_after_the_warm_up_requests_compile_and_load_no_kernel():
                             timeout=110, check=True)
     report = json.loads(result.stdout.splitlines()[-1])
     assert report['first'] > 0.0 and report['again'] == 0.0
-    assert report['plans'] >= 20 and report['kernels'] >= 20
+    assert report['plans'] >= 30 and report['kernels'] >= 60
     assert report['changed'] == []
