@@ -19,6 +19,9 @@ Nothing here needs a running node: every function takes plain values or messages
 messages or NumPy arrays, so each can be tested on its own.
 """
 
+from dataclasses import dataclass
+import struct
+
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -34,6 +37,14 @@ from visualization_msgs.msg import Marker
 from visualization_msgs.msg import MarkerArray
 
 _NANOSECONDS_PER_SECOND = 1_000_000_000
+# The serialized form that rclpy's publish() takes as bytes: CDR (XCDR1), little-endian, after
+# a 4-byte encapsulation header; each primitive aligned to its size from the end of that
+# header. The header's stamp is the message's first field.
+_CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
+_CDR_STAMP = struct.Struct('<iI')
+_CDR_STAMP_OFFSET = len(_CDR_LITTLE_ENDIAN)
+_CDR_UINT32 = struct.Struct('<I')
+_POINT_ARRAYS = ('positions', 'velocities', 'accelerations')
 
 MARKER_NAMESPACE = 'ellipath'
 # Points of the LINE_STRIP per leg of the cycle.
@@ -138,6 +149,126 @@ def joint_trajectory_message(trajectory, frame_id, stamp):
                                      accelerations=accelerations,
                                      time_from_start=duration_from_seconds(time))
                 for time, positions, velocities, accelerations in rows])
+
+
+@dataclass(frozen=True)
+class SerializedTrajectory:
+    """
+    A trajectory_msgs/JointTrajectory serialized for ``publish()``, and what it holds.
+
+    Attributes
+    ----------
+    data : bytes
+        The message with header stamp zero, serialized as rclpy serializes it (CDR,
+        little-endian; padding bytes zero).
+    trajectory : ellipath_ros.core.joint_trajectory.JointTrajectoryData
+        Exactly the values in ``data``: the times as whole nanoseconds, in seconds.
+    last_time_from_start : builtin_interfaces.msg.Duration
+        The last point's time_from_start.
+
+    """
+
+    data: bytes
+    trajectory: JointTrajectoryData
+    last_time_from_start: Duration
+
+    def stamped(self, stamp):
+        """Return the serialized message with header stamp ``stamp`` (builtin_interfaces/Time)."""
+        return b''.join((self.data[:_CDR_STAMP_OFFSET],
+                         _CDR_STAMP.pack(stamp.sec, stamp.nanosec),
+                         self.data[_CDR_STAMP_OFFSET + _CDR_STAMP.size:]))
+
+
+class _CdrWriter:
+    """Appends CDR fields, each aligned from the end of the encapsulation header."""
+
+    def __init__(self):
+        self.parts = [_CDR_LITTLE_ENDIAN]
+        self.size = 0  # bytes after the encapsulation header
+
+    def raw(self, data, alignment=1):
+        padding = -self.size % alignment
+        self.parts += [bytes(padding), data]
+        self.size += padding + len(data)
+
+    def string(self, text):
+        encoded = text.encode() + b'\0'
+        self.raw(_CDR_UINT32.pack(len(encoded)), 4)
+        self.raw(encoded)
+
+
+def _point_layout(offset, joints):
+    """
+    Return (field offsets, size) of a JointTrajectoryPoint serialized from ``offset``.
+
+    The offsets are relative to the point's start: the count and values of positions,
+    velocities and accelerations, effort's count (it stays empty) and time_from_start. A
+    point's layout depends on its start modulo 8 (the doubles' alignment).
+    """
+    fields = {}
+    end = offset
+    for name in _POINT_ARRAYS:
+        end += -end % 4
+        fields[name + '_count'] = end - offset
+        end += 4 + (-(end + 4) % 8)
+        fields[name] = end - offset
+        end += 8 * joints
+    end += -end % 4
+    fields['effort_count'] = end - offset
+    fields['time_from_start'] = end + 4 - offset
+    return fields, end + 4 + _CDR_STAMP.size - offset
+
+
+def serialized_joint_trajectory(trajectory, frame_id):
+    """
+    Serialize the core's JointTrajectoryData as a trajectory_msgs/JointTrajectory, stamp zero.
+
+    The message of :func:`joint_trajectory_message` (times rounded to whole nanoseconds the
+    same way), written straight from the arrays: building the message's objects point by
+    point and serializing them cost about 30 times as much (1.7 ms for 61 points). Publish
+    ``SerializedTrajectory.stamped(stamp)``: rclpy publishes bytes as they are.
+
+    Returns
+    -------
+    SerializedTrajectory
+
+    """
+    nanoseconds = np.rint(np.asarray(trajectory.time_from_start, dtype=float)
+                          * _NANOSECONDS_PER_SECOND).astype(np.int64)
+    seconds, nanoseconds_left = np.divmod(nanoseconds, _NANOSECONDS_PER_SECOND)
+    arrays = [np.ascontiguousarray(getattr(trajectory, name), dtype='<f8')
+              for name in _POINT_ARRAYS]
+    count, joints = arrays[0].shape
+    writer = _CdrWriter()
+    writer.raw(_CDR_STAMP.pack(0, 0), 4)
+    writer.string(frame_id)
+    writer.raw(_CDR_UINT32.pack(len(trajectory.joint_names)), 4)
+    for name in trajectory.joint_names:
+        writer.string(name)
+    writer.raw(_CDR_UINT32.pack(count), 4)
+    # The first point's layout depends on where it starts; the second starts 4 bytes past a
+    # multiple of 8, and so does every later one (such a point's size is a multiple of 8).
+    first, first_size = _point_layout(writer.size, joints)
+    rest, rest_size = _point_layout(writer.size + first_size, joints)
+    points = np.zeros(first_size + (count - 1) * rest_size, dtype=np.uint8)
+    joint_count = np.frombuffer(_CDR_UINT32.pack(joints), dtype=np.uint8)
+    for layout, block, rows in (
+            (first, points[:first_size].reshape(1, first_size), slice(0, 1)),
+            (rest, points[first_size:].reshape(count - 1, rest_size), slice(1, None))):
+        for name, values in zip(_POINT_ARRAYS, arrays):
+            block[:, layout[name + '_count']:layout[name + '_count'] + 4] = joint_count
+            block[:, layout[name]:layout[name] + 8 * joints] = (
+                values[rows].view(np.uint8).reshape(-1, 8 * joints))
+        at = layout['time_from_start']
+        block[:, at:at + 4] = seconds[rows].astype('<i4').view(np.uint8).reshape(-1, 4)
+        block[:, at + 4:at + 8] = (
+            nanoseconds_left[rows].astype('<u4').view(np.uint8).reshape(-1, 4))
+    writer.parts.append(points.tobytes())
+    return SerializedTrajectory(
+        b''.join(writer.parts),
+        JointTrajectoryData(tuple(trajectory.joint_names),
+                            seconds + nanoseconds_left / _NANOSECONDS_PER_SECOND, *arrays),
+        Duration(sec=int(seconds[-1]), nanosec=int(nanoseconds_left[-1])))
 
 
 def joint_trajectory_data(message):

@@ -85,13 +85,12 @@ from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 from ellipath_ros.conversions import diagnostic_array
 from ellipath_ros.conversions import joint_positions_by_name
-from ellipath_ros.conversions import joint_trajectory_data
-from ellipath_ros.conversions import joint_trajectory_message
 from ellipath_ros.conversions import path_markers
 from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
+from ellipath_ros.conversions import serialized_joint_trajectory
 from ellipath_ros.core.compiled import warm_up
 from ellipath_ros.core.conveyor import plan_belt_cycle
 from ellipath_ros.core.errors import EllipathError
@@ -583,16 +582,27 @@ class EllipathNode(Node):
             self._sequencer.plan_failed('internal')
             self._report_internal(request.topic, error, pair=request.number)
             return
-        # Reported before it is held, so that its 'released' status cannot come first.
-        values = dict(motion.details['metrics'])
-        # plan_time: the whole plan, the message and its check included (as in 'released').
-        values.update(topic=request.topic, pair=request.number, start_source=start_source,
-                      plan_time=motion.plan_time,
-                      receive_to_plan_latency=time.monotonic() - request.received)
-        values.update(self._queue_values())
-        self._publish_status(DiagnosticStatus.OK, 'planned', values)
-        # None if cleared while planned: the clear_queue status names it.
-        self._sequencer.plan_finished(motion)
+        planned = time.monotonic()
+        # Held first, so that an idle robot gets it without waiting for this status; its
+        # 'released' status waits for this one (see _release), so that it cannot come first.
+        reported = threading.Event()
+        motion.details['planned_reported'] = reported
+        try:
+            # None if cleared while planned: the clear_queue status names it.
+            self._sequencer.plan_finished(motion)
+            # Let the release thread, just woken, take the GIL now, rather than after a switch
+            # interval of this thread's status work: an idle robot gets the motion sooner.
+            time.sleep(0.0)
+            values = dict(motion.details['metrics'])
+            # plan_time: the whole plan, the message and its check included (as in
+            # 'released').
+            values.update(topic=request.topic, pair=request.number, start_source=start_source,
+                          plan_time=motion.plan_time,
+                          receive_to_plan_latency=planned - request.received)
+            values.update(self._queue_values())
+            self._publish_status(DiagnosticStatus.OK, 'planned', values)
+        finally:
+            reported.set()
 
     def _plan(self, request, start, start_source, settings, belt_start=None):
         """
@@ -618,13 +628,11 @@ class EllipathNode(Node):
         else:
             plan = plan_cycle(start, request.pick, request.place, settings.planner,
                               pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
-        message = joint_trajectory_message(plan.joint_trajectory, settings.frame_id,
-                                           Time())
+        message = serialized_joint_trajectory(plan.joint_trajectory, settings.frame_id)
         # Check what is actually sent, after the conversion to whole nanoseconds.
-        trajectory = joint_trajectory_data(message)
-        validate_jtc(trajectory, expect_names=settings.planner.joint_names)
+        validate_jtc(message.trajectory, expect_names=settings.planner.joint_names)
         return PlannedMotion(
-            request, trajectory, require_point('start', start), plan.end_position,
+            request, message.trajectory, require_point('start', start), plan.end_position,
             time.perf_counter() - started,
             details={'message': message, 'plan': plan, 'metrics': plan.metrics,
                      'start_source': start_source, **details})
@@ -700,6 +708,7 @@ class EllipathNode(Node):
         """Check where the robot is, re-plan if needed, publish and report a held motion."""
         settings = self._settings
         request = motion.request
+        planned_reported = motion.details.get('planned_reported')
         try:
             motion, check = self._checked_start(motion, settings)
         except EllipathError as error:
@@ -725,6 +734,7 @@ class EllipathNode(Node):
                 return
             motion, published, start_time = released
             message = motion.details['message']
+            header_stamp = _time_at(motion.details['belt_start'])
             release = self._sequencer.released(motion, published, 'ahead',
                                                settings.controller_period,
                                                settings.release_lead, start=start_time)
@@ -740,13 +750,14 @@ class EllipathNode(Node):
                 start_time = end_time
             else:
                 start_time = now + Duration(seconds=stamp - published)
-            message.header.stamp = start_time.to_msg()
-            last = message.points[-1].time_from_start
+            last = message.last_time_from_start
             self._ahead_end = (stamp + seconds_from_duration(last),
                                start_time + Duration(seconds=last.sec, nanoseconds=last.nanosec))
-            self._trajectory_publisher.publish(message)
+            header_stamp = start_time.to_msg()
+            self._trajectory_publisher.publish(message.stamped(header_stamp))
         else:
-            self._trajectory_publisher.publish(message)
+            header_stamp = Time()
+            self._trajectory_publisher.publish(message.data)
             # Read after publishing, so the latest start (this + controller_period) is not
             # underestimated by the time publish() takes.
             published = time.monotonic()
@@ -755,11 +766,13 @@ class EllipathNode(Node):
                                                settings.controller_period,
                                                settings.release_lead)
         self._last_end_position = motion.end_position
+        if planned_reported is not None:
+            planned_reported.wait(SHUTDOWN_WAIT)
         self._publish_status(DiagnosticStatus.OK, 'released',
                              self._release_values(release, check))
         if self._marker_publisher.get_subscription_count() > 0:
             self._marker_publisher.publish(path_markers(
-                motion.details['plan'], settings.frame_id, message.header.stamp))
+                motion.details['plan'], settings.frame_id, header_stamp))
 
     def _drop_at_release(self, request, kind, error):
         """Count the pair taken for release as dropped as ``kind`` and say why."""
@@ -805,15 +818,13 @@ class EllipathNode(Node):
         belt_start = motion.details['belt_start']
         published = time.monotonic()
         now = self.get_clock().now()
-        start_ns = int(round(belt_start * 1e9))
+        start_ns = _nanoseconds(belt_start)
         if start_ns - now.nanoseconds < lead * 1e9:
             return None
         message = motion.details['message']
-        message.header.stamp = Time(sec=start_ns // 1_000_000_000,
-                                    nanosec=start_ns % 1_000_000_000)
-        self._trajectory_publisher.publish(message)
+        self._trajectory_publisher.publish(message.stamped(_time_at(belt_start)))
         clock_start = published + (start_ns - now.nanoseconds) * 1e-9
-        last = message.points[-1].time_from_start
+        last = message.last_time_from_start
         last_ns = last.sec * 1_000_000_000 + last.nanosec
         self._ahead_end = (clock_start + last_ns * 1e-9,
                            now + Duration(nanoseconds=start_ns + last_ns - now.nanoseconds))
@@ -955,14 +966,25 @@ def _delayed_belt_start(motion, delay, frame_id):
     times = trajectory.time_from_start.copy()
     times[1:] -= delay
     shortened = dataclasses.replace(trajectory, time_from_start=times)
-    message = joint_trajectory_message(shortened, frame_id, Time())
+    message = serialized_joint_trajectory(shortened, frame_id)
     metrics = {**motion.details['metrics'], 'belt.wait': wait - delay}
     # The same absolute instants, from the later start.
     for key in ('belt.pick_after_start', 'belt.place_after_start'):
         metrics[key] -= delay
-    return dataclasses.replace(motion, trajectory=joint_trajectory_data(message), details={
+    return dataclasses.replace(motion, trajectory=message.trajectory, details={
         **motion.details, 'message': message, 'metrics': metrics,
         'belt_start': motion.details['belt_start'] + delay})
+
+
+def _nanoseconds(seconds):
+    """Return a node-clock time [s] in whole nanoseconds."""
+    return int(round(seconds * 1e9))
+
+
+def _time_at(seconds):
+    """Return a node-clock time [s] as builtin_interfaces/Time (whole nanoseconds)."""
+    sec, nanosec = divmod(_nanoseconds(seconds), 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def _stamp_key(stamp):

@@ -62,6 +62,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy
 from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -1146,7 +1147,8 @@ def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_h
     node = harness.node
     settings, late = past_belt_pick(harness, 0.5)
     sent = []
-    node._trajectory_publisher.publish = sent.append
+    node._trajectory_publisher.publish = (
+        lambda data: sent.append(deserialize_message(data, JointTrajectory)))
     # A start less than release_lead ahead is not published.
     assert node._publish_belt(late, settings.release_lead) is None
     assert sent == []

@@ -45,11 +45,13 @@ from hypothesis import settings
 from hypothesis import strategies as st
 import pytest
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 from std_srvs.srv import Trigger
 from test_properties import assert_executable
 from test_properties import hostile_floats
 from test_properties import inside
 from test_properties import SCALE
+from trajectory_msgs.msg import JointTrajectory
 
 ROS_DOMAIN_OFFSET = 6  # see conftest.py
 NAMESPACE = f'/ellipath_properties_{os.getpid()}'
@@ -68,7 +70,9 @@ class Recorder:
         self.messages = []
 
     def publish(self, message):
-        self.messages.append(message)
+        # The node publishes its trajectories serialized.
+        self.messages.append(deserialize_message(message, JointTrajectory)
+                             if isinstance(message, bytes) else message)
 
 
 @pytest.fixture(scope='module')

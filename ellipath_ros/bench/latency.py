@@ -33,9 +33,8 @@ from dataclasses import replace
 import math
 import time
 
-from builtin_interfaces.msg import Time
-from ellipath_ros.conversions import joint_trajectory_data
-from ellipath_ros.conversions import joint_trajectory_message
+from ellipath_ros.conversions import serialized_joint_trajectory
+from ellipath_ros.conversions import SerializedTrajectory
 from ellipath_ros.core.controller import executed_tcp
 from ellipath_ros.core.controller import JazzyJtcEmulator
 from ellipath_ros.core.errors import EllipathError
@@ -43,8 +42,6 @@ from ellipath_ros.core.planner import CyclePlan
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import plan_transfer
 import numpy as np
-from rclpy.serialization import serialize_message
-from trajectory_msgs.msg import JointTrajectory
 
 DEFAULT_SEED = 2023
 WORKSPACE_RADIUS = 0.35  # m
@@ -57,13 +54,13 @@ SETTLE_TIME = 0.005  # s
 
 @dataclass(frozen=True)
 class Request:
-    """A planned request: where it starts, the pair, the plan and its message."""
+    """A planned request: where it starts, the pair, the plan and its serialized message."""
 
     start: np.ndarray
     pick: np.ndarray
     place: np.ndarray
     plan: CyclePlan
-    message: JointTrajectory
+    message: SerializedTrajectory
 
 
 @dataclass
@@ -189,12 +186,11 @@ def measure_requests(pairs, home, settings, budget_s, progress):
     """
     budget = _Budget('request', len(pairs), budget_s, progress)
     start = np.asarray(home, dtype=float)
-    zero = Time()
 
     def request(start, pick, place):
         plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
                           place_dwell=settings.place_dwell)
-        return plan, joint_trajectory_message(plan.joint_trajectory, settings.frame_id, zero)
+        return plan, serialized_joint_trajectory(plan.joint_trajectory, settings.frame_id)
 
     _warm_up(request, start, *pairs[0])
     requests = []
@@ -237,24 +233,27 @@ def measure_curvature_requests(requests, settings, budget_s, progress):
     The paper's node rule lives on the paper's path, so these requests use ``join='paper'``.
     """
     config = replace(settings.planner, profile='curvature', join='paper')
-    zero = Time()
 
     def request_again(request):
         plan = plan_cycle(request.start, request.pick, request.place, config,
                           pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
-        joint_trajectory_message(plan.joint_trajectory, settings.frame_id, zero)
+        serialized_joint_trajectory(plan.joint_trajectory, settings.frame_id)
 
     return _time_each(_Budget('curvature request', len(requests), budget_s, progress),
                       requests, request_again)
 
 
 def measure_messages(requests, frame_id, progress):
-    """Time building and serialising each planned request's JointTrajectory message."""
-    zero = Time()
+    """
+    Time building and serialising each planned request's JointTrajectory message.
+
+    The node's way: :func:`~ellipath_ros.conversions.serialized_joint_trajectory` writes the
+    serialized message (the bytes that ``publish()`` sends) straight from the arrays, with
+    the trajectory of what it holds, which the node checks before it publishes.
+    """
     return _time_each(
         _Budget('message', len(requests), math.inf, progress), requests,
-        lambda request: serialize_message(joint_trajectory_message(
-            request.plan.joint_trajectory, frame_id, zero)))
+        lambda request: serialized_joint_trajectory(request.plan.joint_trajectory, frame_id))
 
 
 def executed_peaks(requests, config, budget_s, progress):
@@ -280,7 +279,7 @@ def executed_peaks(requests, config, budget_s, progress):
     peaks = np.zeros(3)
     for request in budget.items(requests):
         began = time.perf_counter()
-        published = joint_trajectory_data(request.message)
+        published = request.message.trajectory
         controller = JazzyJtcEmulator(published.joint_names, period=CONTROL_PERIOD,
                                       initial_positions=published.positions[0])
         controller.receive(published, 0.0, 0.0)
