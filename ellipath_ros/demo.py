@@ -17,8 +17,9 @@
 
 :func:`run_demo` starts ``ellipath_node`` in this process (an executor thread of its own, an
 rclpy context of its own) and a separate client node that plays the cell. The client sends a
-conveyor-like stream of pick/place pairs with one deliberately unreachable pair among them,
-and records the node's answer to each pair and every trajectory with its ``header.stamp``
+conveyor-like stream of pick/place pairs with two deliberately bad pairs among them (a place
+out of reach, and an object behind the conveyor's frame, whose path would cross it), and
+records the node's answer to each pair and every trajectory with its ``header.stamp``
 and the time it arrived. Pacing (``--pacing``):
 
 * ``burst`` (default): the pairs go out as fast as the node takes them, far faster than the
@@ -32,7 +33,14 @@ Then :mod:`ellipath_ros.demo_report` replays the trajectories at their arrival t
 the emulation of Jazzy's joint_trajectory_controller and prints what the robot executes:
 picks/min and the gaps between trajectories from the executed timeline, the largest deviation
 of the executed TCP from the planned paths, whether every pick and place was visited in
-order, the joint limits of the executed command, and the rejection of the bad pair.
+order, the joint limits of the executed command, the executed TCP against the node's safe
+workspace, and the rejections of the bad pairs.
+
+The cell's safe workspace is the node's own (``workspace_radius``, ``workspace_z_min``,
+``workspace_z_max`` from the parameters): the demo adds the conveyor's frame as
+``keep_out_boxes`` (``CELL_KEEP_OUT_BOXES``, replacing any boxes of the parameters file; not
+in the ``--belt`` scenario), and the report judges the executed TCP with that same
+:class:`~ellipath_ros.core.workspace.SafeWorkspace` and describes it.
 
 DDS stays on this host: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set to ``LOCALHOST`` unless the
 environment already sets it to a non-empty value, which is respected (this changes
@@ -42,8 +50,8 @@ else 77), so they talk to no other ``ellipath_node`` or demo; only ``/diagnostic
 shared. A parameters file must therefore use the keys ``/**`` or ``/**/ellipath_node``.
 
 Exit status: 0 when every check passed (every good pair planned and executed as planned, the
-bad pair rejected as unreachable); 1 when a check failed; 2 when the parameters or options
-are invalid; 3 on a timeout; 130 on Ctrl-C.
+bad pairs rejected as unreachable and as leaving the safe workspace); 1 when a check failed;
+2 when the parameters or options are invalid; 3 on a timeout; 130 on Ctrl-C.
 """
 
 import argparse
@@ -104,13 +112,23 @@ CONVEYOR_STEP = 0.035
 BOXES = tuple((x, y, z) for x, z in ((0.14, -0.80), (0.18, -0.83)) for y in (-0.08, 0.0, 0.08))
 # The deliberately bad place: 0.9 m off the axis, far outside the reach of the robot.
 BAD_PLACE = (0.90, 0.0, -0.80)
+# The conveyor's frame: its far side rail, 10 mm above the belt, beyond the picks (which the
+# robot reaches straight from above) and on the side away from the boxes, so no good pair's
+# path comes near it. [xmin, ymin, zmin, xmax, ymax, zmax] [m], as keep_out_boxes.
+CELL_KEEP_OUT_BOXES = (-0.26, -0.30, -1.0, -0.21, 0.30, -0.84)
+# The second bad pair: an object that fell behind that rail. Reachable, inside the cylinder,
+# but the path to it and from it crosses the rail: the node must reject it as 'workspace'.
+BEHIND_FRAME_PICK = (-0.30, 0.0, -0.90)
+UNREACHABLE = 'unreachable'
+OUTSIDE_WORKSPACE = 'workspace'
 
 
 def add_arguments(parser):
     """Add the options of ``ellipath demo`` to an argparse parser."""
     parser.add_argument(
         '--cycles', type=_positive_int, default=DEFAULT_CYCLES,
-        help='pick/place pairs to send, one of them deliberately unreachable '
+        help='pick/place pairs to send, two of them deliberately bad (one unreachable, one '
+             "crossing the conveyor's frame; only the first with fewer than 3) "
              '(default: %(default)s)')
     parser.add_argument(
         '--pacing', choices=PACINGS, default='burst',
@@ -165,7 +183,7 @@ def _domain_id(text):
 
 def cell_pairs(cycles):
     """
-    Return the demo's pick/place pairs and the index of the deliberately bad one.
+    Return the demo's pick/place pairs and the rejections expected of the bad ones.
 
     Parameters
     ----------
@@ -175,18 +193,28 @@ def cell_pairs(cycles):
     Returns
     -------
     tuple
-        (list of (pick, place) float arrays (3,) [m], index of the bad pair). The bad pair is
-        in the middle, so good pairs come before and after it.
+        (list of (pick, place) float arrays (3,) [m], dict of the bad pairs' indices to the
+        kind of rejection expected). The unreachable place is in the middle, the pick behind
+        the conveyor's frame half-way from there to the end (from 3 pairs on), so good pairs
+        come before, between and after them.
 
     """
-    bad = cycles // 2
+    unreachable = cycles // 2
+    expected = {unreachable: UNREACHABLE}
+    behind_frame = (unreachable + cycles) // 2
+    if behind_frame != unreachable:
+        expected[behind_frame] = OUTSIDE_WORKSPACE
     span = CONVEYOR_Y[1] - CONVEYOR_Y[0]
     pairs = []
     for index in range(cycles):
         pick = (CONVEYOR_X, CONVEYOR_Y[0] + (index * CONVEYOR_STEP) % span, CONVEYOR_Z)
-        place = BAD_PLACE if index == bad else BOXES[index % len(BOXES)]
+        place = BOXES[index % len(BOXES)]
+        if expected.get(index) == UNREACHABLE:
+            place = BAD_PLACE
+        elif expected.get(index) == OUTSIDE_WORKSPACE:
+            pick = BEHIND_FRAME_PICK
         pairs.append((np.array(pick, dtype=float), np.array(place, dtype=float)))
-    return pairs, bad
+    return pairs, expected
 
 
 def default_params_file():
@@ -278,7 +306,13 @@ def _run_in_context(args, context, params_file, domain_id):
     from rclpy.parameter import Parameter
 
     cli_args = ['--ros-args', '--params-file', str(params_file)] if params_file else None
-    overrides = [Parameter('profile', value=args.profile)] if args.profile else []
+    # The cell's scene: the node plans around the conveyor's frame, and the report judges and
+    # draws the same workspace (the settings read back from the node below). The belt
+    # scenario has a scene of its own.
+    overrides = ([] if args.belt else
+                 [Parameter('keep_out_boxes', value=list(CELL_KEEP_OUT_BOXES))])
+    if args.profile:
+        overrides.append(Parameter('profile', value=args.profile))
     if args.belt:
         overrides += [Parameter(name, value=value)
                       for name, value in belt_parameters(args.belt_speed, args.place_belt)]
@@ -319,9 +353,14 @@ def _run_in_context(args, context, params_file, domain_id):
 def _run_cycles(args, cell, settings, header):
     """Send every pair, collect the answers, print the report; return the exit status."""
     out = sys.stdout
-    pairs, bad = cell_pairs(args.cycles)
-    out.write(f'{header}\npair {bad + 1} is deliberately bad: place {mm_text(BAD_PLACE)} mm is '
-              'out of reach\n')
+    pairs, expected = cell_pairs(args.cycles)
+    out.write(f'{header}\nsafe workspace of the node: {settings.planner.workspace.describe()}'
+              '; keep_out_boxes[0] is the frame of the conveyor\n')
+    for index, kind in sorted(expected.items()):
+        pick, place = pairs[index]
+        why = (f'place {mm_text(place)} mm is out of reach' if kind == UNREACHABLE else
+               f"pick {mm_text(pick)} mm lies behind the conveyor's frame: the path crosses it")
+        out.write(f'pair {index + 1} is deliberately bad ({kind}): {why}\n')
     out.flush()
     started = time.monotonic()
     failure = cell.wait_for_node(args.timeout)
@@ -329,7 +368,7 @@ def _run_cycles(args, cell, settings, header):
         status, message = failure
         sys.stderr.write(f'ellipath demo: {message}\n')
         return status
-    outcomes = [PairOutcome(index, pick, place, index == bad)
+    outcomes = [PairOutcome(index, pick, place, expected.get(index))
                 for index, (pick, place) in enumerate(pairs)]
     start_time = time.time()
     try:

@@ -28,8 +28,10 @@ commands the controller writes:
   kinematics of JTC's interpolation of each trajectory on its own;
 * every pick and place of the planned pairs is visited, in the order sent;
 * the executed joint commands stay within the joint position, velocity and acceleration
-  limits, and the TCP within the useful workspace of the default robot;
-* the bad pair is rejected as unreachable, every other pair is planned.
+  limits, and the TCP within the node's safe workspace (``config.workspace``, judged by
+  :meth:`~ellipath_ros.core.workspace.SafeWorkspace.check` itself);
+* each deliberately bad pair is rejected with the kind expected of it
+  (``PairOutcome.expected_rejection``), every other pair is planned.
 
 Throughput and the hand-over gaps come from the executed timeline, not from the planned
 durations; both are printed. :func:`format_report` prints the table and the summary.
@@ -47,6 +49,7 @@ from ellipath_ros.core.controller import planned_tcp_path
 from ellipath_ros.core.controller import visit_times
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import LimitError
+from ellipath_ros.core.errors import WorkspaceError
 from ellipath_ros.core.joint_trajectory import check_joint_limits
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import TrajectoryRejectedError
@@ -66,11 +69,6 @@ VELOCITY_STATE = True
 REPLAY_MARGIN = 0.05
 # Relative slack on the joint limits, for rounding only.
 LIMIT_SLACK = 1e-6
-# The useful workspace of the default robot (DeltaGeometry): the TCP must stay in it.
-WORKSPACE_RADIUS = 0.40  # m
-WORKSPACE_Z = (-1.0, -0.55)  # m
-# The rejection the deliberately bad pair must get.
-BAD_KIND = 'unreachable'
 # Keys of the node's OK status (the planner's CyclePlan.metrics).
 PHI_KEY = 'transfer.phi_deg'
 APEX_KEY = 'transfer.apex_height'
@@ -121,8 +119,9 @@ class PairOutcome:
         0-based number of the pair.
     pick, place : numpy.ndarray
         The pair [m], shape (3,).
-    bad : bool
-        True for the deliberately bad pair.
+    expected_rejection : str or None
+        For a deliberately bad pair, the ``kind`` of the rejection expected of the node
+        (``'unreachable'``, ``'workspace'``); None for a good pair.
     sent_time : float
         When its place was sent [s], system clock.
     level : str or None
@@ -140,7 +139,7 @@ class PairOutcome:
     index: int
     pick: np.ndarray
     place: np.ndarray
-    bad: bool
+    expected_rejection: str = None
     sent_time: float = math.nan
     level: str = None
     message: str = ''
@@ -331,7 +330,8 @@ def evaluate_run(outcomes, trajectories, home_position, config, start_time, time
         (trajectories replaced while running) and ``executed_cut_max`` [s],
         ``executed_deviation_max`` [m], ``executed_visits`` and ``visit_targets``,
         ``executed_peak_tcp_speed``/``_accel``/``_jerk`` (finite differences at 1 kHz),
-        ``executed_peak_joint_velocity``/``_accel``.
+        ``executed_peak_joint_velocity``/``_accel``, ``executed_workspace_clear``
+        (the executed TCP inside ``config.workspace`` throughout).
 
     """
     failures = []
@@ -448,7 +448,11 @@ def _executed_figures(replay, owner, config, failures):
     figures['executed_peak_joint_velocity'] = float(np.abs(samples.velocities).max())
     figures['executed_peak_joint_accel'] = float(np.abs(samples.accelerations).max())
     failures.extend(_limit_failures(samples, config))
-    failures.extend(_workspace_failures(samples.times, tcp.positions))
+    figures['executed_workspace_clear'] = True
+    workspace_failure = _workspace_failure(samples.times, tcp.positions, config.workspace)
+    if workspace_failure is not None:
+        figures['executed_workspace_clear'] = False
+        failures.append(workspace_failure)
     return figures
 
 
@@ -472,17 +476,18 @@ def _limit_failures(samples, config):
     return []
 
 
-def _workspace_failures(times, tcp):
-    """Return a failure line if the executed TCP leaves the workspace."""
-    radius = np.hypot(tcp[:, 0], tcp[:, 1])
-    outside = ((radius > WORKSPACE_RADIUS) | (tcp[:, 2] < WORKSPACE_Z[0])
-               | (tcp[:, 2] > WORKSPACE_Z[1]))
-    if not outside.any():
-        return []
-    sample = int(np.argmax(outside))
-    return [f'executed TCP {mm_text(tcp[sample])} mm at t={times[sample] - times[0]:.3f} s '
-            f'leaves the workspace (radius <= {WORKSPACE_RADIUS * _MM:g} mm, z in '
-            f'[{WORKSPACE_Z[0] * _MM:g}, {WORKSPACE_Z[1] * _MM:g}] mm)']
+def _workspace_failure(times, tcp, workspace):
+    """
+    Return a failure line if the executed TCP leaves the node's safe workspace, else None.
+
+    Judged by :meth:`SafeWorkspace.check` itself, at its default tolerance (the planner's
+    check of the executed motion), naming the first offending sample and its time.
+    """
+    try:
+        workspace.check(tcp, name='executed TCP', times=times - times[0])
+    except WorkspaceError as error:
+        return str(error)
+    return None
 
 
 def _judge(outcome, number, problems, replay):
@@ -494,12 +499,13 @@ def _judge(outcome, number, problems, replay):
     """
     if outcome.level is None:
         return PairRow(outcome, 'timeout', 'no answer from the node')
-    if outcome.bad:
+    expected = outcome.expected_rejection
+    if expected is not None:
         if outcome.level == 'OK':
-            return PairRow(outcome, 'not_rejected', f'expected a rejection ({BAD_KIND}) of '
-                           f'the place {mm_text(outcome.place)} mm')
+            return PairRow(outcome, 'not_rejected', f'expected a rejection ({expected}) of '
+                           f'{mm_text(outcome.pick)} -> {mm_text(outcome.place)} mm')
         kind = outcome.values.get('kind')
-        verdict = 'rejected_expected' if kind == BAD_KIND else 'rejected_unexpected'
+        verdict = 'rejected_expected' if kind == expected else 'rejected_unexpected'
         return PairRow(outcome, verdict, outcome.message)
     if outcome.level != 'OK':
         return PairRow(outcome, 'rejected_unexpected', outcome.message)
@@ -596,6 +602,16 @@ def table_row(row):
     return ' '.join(cells) + '  ' + status + '\n'
 
 
+def _workspace_text(workspace):
+    """Describe a SafeWorkspace in millimetres: the cylinder, the z range and every box."""
+    text = (f'radius {workspace.radius * _MM:g} mm about the base axis, z from '
+            f'{workspace.z_min * _MM:g} to {workspace.z_max * _MM:g} mm')
+    for index, box in enumerate(workspace.keep_out_boxes):
+        text += (f', keep-out box {index} from {mm_text(box[:3]).replace(" ", "")} to '
+                 f'{mm_text(box[3:]).replace(" ", "")} mm')
+    return text
+
+
 def _number(value, spec, scale=1.0):
     """Format ``value * scale`` with ``spec``, or '-' when it is not finite."""
     return format(value * scale, spec) if math.isfinite(value) else '-'
@@ -637,6 +653,9 @@ def format_report(report, config):
         f'{joints.max_velocity:g}), {_number(f["executed_peak_joint_accel"], ".1f")} rad/s2 '
         f'(limit {joints.max_acceleration:g})',
     ]
+    lines.append(f"safe workspace (the node's parameters): {_workspace_text(config.workspace)}"
+                 '; executed TCP ' + ('inside it throughout' if f['executed_workspace_clear']
+                                      else 'NOT inside it (see the failure below)'))
     text = table_header() + ''.join(table_row(row) for row in report.rows) + '\n'
     text += ''.join(line + '\n' for line in lines)
     if report.timed_out:

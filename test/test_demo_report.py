@@ -31,6 +31,7 @@ from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.kinematics import JointLimits
 from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.planner import PlannerConfig
+from ellipath_ros.core.workspace import SafeWorkspace
 from ellipath_ros.demo_report import evaluate_run
 from ellipath_ros.demo_report import format_report
 from ellipath_ros.demo_report import PairOutcome
@@ -65,7 +66,8 @@ def outcomes(plans, bad_answer=('ERROR', {'kind': 'unreachable', 'topic': 'place
     """Return the pairs as sent, answered like the node: OK with its metrics, or an error."""
     result, planned = [], iter(plans)
     for index, (pick, place) in enumerate(PAIRS):
-        outcome = PairOutcome(index, np.array(pick), np.array(place), index == BAD,
+        outcome = PairOutcome(index, np.array(pick), np.array(place),
+                              'unreachable' if index == BAD else None,
                               sent_time=T0 + 0.1 * index, round_trip=0.05)
         if index == BAD:
             outcome.level, outcome.values = bad_answer
@@ -156,6 +158,28 @@ def test_a_hand_over_just_before_the_end_is_judged_by_the_path(plans):
     assert report.figures['executed_gap_max'] < 0.0
     assert 'took over while the previous trajectory ran' in report.rows[1].reason
     assert report.rows[1].verdict == 'ok'
+
+
+def test_the_executed_tcp_is_judged_by_the_nodes_safe_workspace(plans):
+    # The same executed motion, judged against a workspace with a box across the first
+    # pair's path (a box the planner did not know of): the first sample inside it fails the
+    # run, named with its time; the report describes the workspace it judged against.
+    pick, place = np.array(PAIRS[0][0]), np.array(PAIRS[0][1])
+    middle = (pick + place) / 2.0
+    box = (*(middle - [0.01, 0.3, 0.3]), *(middle + [0.01, 0.3, 0.3]))
+    boxed = replace(CONFIG, workspace=SafeWorkspace(keep_out_boxes=box))
+    report = evaluate_run(outcomes(plans), released_in_sequence(plans), HOME, boxed, T0)
+    assert not report.passed and report.figures['executed_workspace_clear'] is False
+    [failure] = [failure for failure in report.failures
+                 if failure.startswith('executed TCP[')]
+    assert re.search(r'^executed TCP\[\d+\] at t = \d+\.\d+ s: ', failure)
+    assert 'inside keep_out_boxes[0]' in failure
+    text = format_report(report, boxed)
+    assert 'keep-out box 0 from' in text and 'executed TCP NOT inside it' in text
+    # Without the box: inside throughout.
+    report = evaluate_run(outcomes(plans), released_in_sequence(plans), HOME, CONFIG, T0)
+    assert report.figures['executed_workspace_clear'] is True
+    assert 'executed TCP inside it throughout' in format_report(report, CONFIG)
 
 
 def test_a_planned_bad_pair_and_an_unexpected_rejection_fail(plans):

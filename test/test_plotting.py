@@ -31,7 +31,7 @@ PAPER_PICK = (0.0, 0.0, -0.8)
 PAPER_PLACE = (0.3, 0.0, -0.75)
 EXPECTED = {'fig2_length_vs_phi.png', 'fig3_radius_of_curvature.png',
             'fig5_curvature_profile.png', 'fig6_path_nodes.png', 'fig7_joint_angles.png',
-            'fig8_path_comparison.png', 'profiles_comparison.png'}
+            'fig8_path_comparison.png', 'profiles_comparison.png', 'workspace.png'}
 PNG_SIGNATURE = b'\x89PNG\r\n\x1a\n'
 
 
@@ -61,6 +61,17 @@ def test_other_arc_policy_and_descending_move(tmp_path):
     config = PlannerConfig.from_flat({'arc_policy': 'apex_clearance', 'apex_clearance': 0.03})
     written = write_figures((0.1, 0.05, -0.75), (-0.15, -0.05, -0.8), tmp_path, config)
     assert {os.path.basename(path) for path in written} == EXPECTED
+
+
+def test_the_workspace_figure_draws_the_configured_keep_out_boxes(tmp_path):
+    # The same move, without and with a keep-out box away from its path: only the box differs.
+    pick, place = (0.1, 0.05, -0.75), (-0.15, -0.05, -0.8)
+    plain = write_figures(pick, place, tmp_path / 'plain')[-1]
+    config = PlannerConfig.from_flat({'keep_out_boxes': [0.2, 0.2, -1.0, 0.3, 0.3, -0.7]})
+    boxed = write_figures(pick, place, tmp_path / 'boxed', config)[-1]
+    assert os.path.basename(plain) == os.path.basename(boxed) == 'workspace.png'
+    with open(plain, 'rb') as first, open(boxed, 'rb') as second:
+        assert first.read() != second.read()
 
 
 def test_a_pure_vertical_move_has_no_figures(tmp_path):

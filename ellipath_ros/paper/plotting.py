@@ -284,14 +284,56 @@ def _figure_profiles(plans, config, out_dir):
     return _save(figure, out_dir, 'profiles_comparison.png')
 
 
+def _figure_workspace(plan, workspace, out_dir):
+    """
+    Draw the safe workspace and the planned TCP path in it, from above and from the side.
+
+    The cylinder (radius about the base axis, z range) and every keep-out box, as the planner
+    checks them (``config.workspace``); the path is the planned one, pick to place.
+    """
+    from matplotlib.patches import Circle, Rectangle
+
+    path = plan.path.at_lengths(np.linspace(0.0, plan.path.length, 400)).position * 1e3
+    radius, z_min, z_max = (value * 1e3 for value in
+                            (workspace.radius, workspace.z_min, workspace.z_max))
+    boxes = np.asarray(workspace.keep_out_boxes, dtype=float).reshape(-1, 6) * 1e3
+    figure, axes = _new_figure(1, 2, size=(10.0, 4.5))
+    top, side = axes[0]
+    top.add_patch(Circle((0.0, 0.0), radius, fill=False, color='black',
+                         label=f'cylinder r = {radius:g} mm'))
+    side.add_patch(Rectangle((-radius, z_min), 2 * radius, z_max - z_min, fill=False,
+                             color='black', label=f'z from {z_min:g} to {z_max:g} mm'))
+    for index, box in enumerate(boxes):
+        style = {'color': 'tab:red', 'alpha': 0.3,
+                 'label': 'keep-out boxes' if index == 0 else None}
+        top.add_patch(Rectangle(box[[0, 1]], *(box[[3, 4]] - box[[0, 1]]), **style))
+        side.add_patch(Rectangle(box[[0, 2]], *(box[[3, 5]] - box[[0, 2]]), **style))
+    for axis, (first, second), labels in ((top, (0, 1), ('x [mm]', 'y [mm]')),
+                                          (side, (0, 2), ('x [mm]', 'z [mm]'))):
+        axis.plot(path[:, first], path[:, second], 'b-', label='planned TCP path')
+        axis.plot(*path[0, [first, second]], 'o', mfc='none', mec='red', ms=9, label='pick')
+        axis.plot(*path[-1, [first, second]], 'o', mfc='none', mec='green', ms=9,
+                  label='place')
+        axis.set(xlabel=labels[0], ylabel=labels[1])
+        axis.set_aspect('equal', adjustable='datalim')
+        axis.autoscale_view()
+        axis.grid(True, alpha=0.3)
+    top.set_title('from above')
+    side.set_title('from the side (x, z)')
+    side.legend(fontsize='small', loc='best')
+    figure.suptitle(f'safe workspace: {workspace.describe()}; the planned path')
+    return _save(figure, out_dir, 'workspace.png')
+
+
 def write_figures(pick, place, out_dir, config=None):
     """
     Write the figures for one pick and place as PNG files into ``out_dir``.
 
     Figures 2 (for the path's l, h), 3 (the paper's a = 0.3, b = 0.05 and this
     arc), 5, 6 and 7 (the paper's curvature profile with ``config.curvature_r``),
-    8 (comparison paths for this l, h) and the time-optimal vs curvature
-    profile comparison.
+    8 (comparison paths for this l, h), the time-optimal vs curvature
+    profile comparison, and the safe workspace (``config.workspace``: cylinder, z range,
+    keep-out boxes) with the planned path, from above and from the side.
 
     Parameters
     ----------
@@ -331,4 +373,5 @@ def write_figures(pick, place, out_dir, config=None):
     return [_figure2(arc, config.arc, out_dir), _figure3(arc, out_dir),
             _figure5(curvature, r, out_dir), _figure6(curvature, r, out_dir),
             _figure7(curvature, config, out_dir), _figure8(arc, config.arc, out_dir),
-            _figure_profiles((optimal, curvature), config, out_dir)]
+            _figure_profiles((optimal, curvature), config, out_dir),
+            _figure_workspace(optimal, config.workspace, out_dir)]
