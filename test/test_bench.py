@@ -71,7 +71,8 @@ def report(ros_env, ros_domain_id):
 def test_the_json_object_has_the_required_keys(report):
     result, _ = report
     assert {'latency', 'cycle', 'executed', 'picks_per_min', 'machine'} <= set(result)
-    assert set(result['latency']) == LATENCY_KEYS
+    # Beside the required keys: e2e less the node's plan_time of each pair.
+    assert set(result['latency']) == LATENCY_KEYS | {'e2e_outside_plan_ms'}
     for stats in result['latency'].values():
         assert set(stats) == {'p50', 'p99', 'max', 'n'}
     for row in result['cycle']:
@@ -98,6 +99,10 @@ def test_latencies_are_ordered_and_counted(report):
     assert e2e['mismatched'] == 0
     if not e2e['budget_reached']:
         assert latency['e2e_ms']['n'] == e2e['requested']
+    # The node's plan of each pair lies inside its end-to-end time.
+    outside = latency['e2e_outside_plan_ms']
+    assert outside['n'] == latency['e2e_ms']['n']
+    assert outside['max'] < latency['e2e_ms']['max']
 
 
 def test_executed_peaks_are_ratios_to_the_limits(report):

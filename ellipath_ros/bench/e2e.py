@@ -30,6 +30,12 @@ in microseconds. The next pair goes out only after that trajectory's duration an
 answer to a fresh pair (publish, DDS, plan, message, DDS, callback), never time spent waiting
 behind a running trajectory. One warm-up pair (from the home position back to it) goes first
 and is not counted.
+
+Beside each time, the node's own ``plan_time`` of that pair (its ``released`` status: the
+plan, the message and its check, in the node) gives the time spent outside the planner:
+intake, the hand-overs between the node's threads, DDS both ways and this client's callback.
+The planner itself runs slower in the node than in a tight loop here (the robot's idle time
+between pairs leaves caches and clocks cold), which the difference keeps apart.
 """
 
 import os
@@ -59,6 +65,8 @@ WARM_UP_OFFSET = np.array([0.1, 0.0, 0.0])  # m
 # Joint positions of the received last point and of the in-process plan agree to this.
 SAME_PLAN_TOLERANCE = 1e-6  # rad
 _LEVEL_ERROR = b'\x02'
+_RELEASED = 'released'
+_PLAN_TIME_KEY = 'plan_time'
 
 
 class EndToEndError(RuntimeError):
@@ -87,7 +95,8 @@ def measure_end_to_end(requests, home, settings, domain_id, budget_s, progress):
     Returns
     -------
     dict
-        ``times`` (list of s), ``requested``, ``budget_reached``, ``mismatched`` (received
+        ``times`` (list of s), ``plan_times`` (the node's plan_time of each, s; empty if a
+        status was missed), ``requested``, ``budget_reached``, ``mismatched`` (received
         trajectories whose last point differs from the in-process plan's).
 
     Raises
@@ -129,6 +138,7 @@ def _measure(client, requests, budget_s, progress, node_process, log):
     deadline = time.perf_counter() + budget_s
     times = []
     mismatched = 0
+    released_before = len(client.plan_times)
     for index, request in enumerate(requests):
         if time.perf_counter() > deadline:
             break
@@ -140,7 +150,10 @@ def _measure(client, requests, budget_s, progress, node_process, log):
                            atol=SAME_PLAN_TOLERANCE):
             mismatched += 1
     progress('e2e', len(times), len(requests), finished=True)
-    return {'times': times, 'requested': len(requests),
+    plan_times = client.plan_times[released_before:]
+    return {'times': times,
+            'plan_times': plan_times if len(plan_times) == len(times) else [],
+            'requested': len(requests),
             'budget_reached': len(times) < len(requests), 'mismatched': mismatched}
 
 
@@ -203,6 +216,7 @@ class _Client:
                                       100)
         self._received = []  # (serialized message, time.perf_counter() in the callback)
         self._errors = []  # messages of the node's ERROR statuses
+        self.plan_times = []  # plan_time [s] of the node's 'released' statuses, in order
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
 
@@ -210,9 +224,14 @@ class _Client:
         self._received.append((message, time.perf_counter()))
 
     def _on_diagnostics(self, message):
-        self._errors.extend(status.message for status in message.status
-                            if status.hardware_id == self._node_name
-                            and bytes(status.level) == _LEVEL_ERROR)
+        for status in message.status:
+            if status.hardware_id != self._node_name:
+                continue
+            if bytes(status.level) == _LEVEL_ERROR:
+                self._errors.append(status.message)
+            elif status.message == _RELEASED:
+                self.plan_times.extend(float(pair.value) for pair in status.values
+                                       if pair.key == _PLAN_TIME_KEY)
 
     def matched(self):
         """Whether the node subscribes to both poses and publishes trajectories."""
