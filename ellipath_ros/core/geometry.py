@@ -74,6 +74,8 @@ _BLEND_APEX_SHARE = 0.8
 _BLEND_MAX_SPAN = 0.45 * math.pi
 # The bent curve must keep at least this share of the ellipse's smallest parameter speed.
 _BLEND_MIN_SPEED_SHARE = 0.2
+# An upper bound on |f'(u)| on [0, 1] for the shape f of _blend_shape (0.052353 at u = 0.1225).
+_BLEND_SLOPE_BOUND = 0.0524
 # On tight, lopsided arcs a long transition bends the other way for a while (a slight S,
 # which the timing crawls through): such a span is halved until its curvature keeps its
 # sign on this many samples, then bisected this often towards the longest one that does.
@@ -788,11 +790,10 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
     span_1 = _one_way_span(ellipse, span_1, True)
     span_2 = _one_way_span(ellipse, span_2, False)
     t = _dense_grid()
-    slowest = _slowest(ellipse._bend, t)
+    least = _BLEND_MIN_SPEED_SHARE * _ellipse_slowest(ellipse._bend, t)
     for _ in range(20):
         bent = BlendedArc(ellipse, span_1, span_2)
-        # Outside the transitions the bent curve is the ellipse: only they can be slower.
-        if _slowest(bent._bend, t) >= _BLEND_MIN_SPEED_SHARE * slowest:
+        if _keeps_speed(bent._bend, ellipse.b, least, t):
             return bent
         span_1, span_2 = 0.5 * span_1, 0.5 * span_2
     raise DegenerateGeometryError(
@@ -855,12 +856,12 @@ def _longest_span(ellipse, tolerance, safe, cap, at_t1):
 
 
 @kernel
-def _transition_distance(ellipse, span, at_t1, u, shape, foot_steps):
+def _transition_distance(ellipse, span, at_t1, u, shape, order, foot_steps):
     """
     Return an upper bound on the distance of a transition from the ellipse [m].
 
     ``ellipse`` is (l, h, k, 0, 0); ``u`` and ``shape`` are the transition's samples and
-    f(u) there (:func:`_distance_grid`). Per sample the smaller of the horizontal offset and
+    f(u) there, ``order`` their indices by falling f (:func:`_distance_grid`). Per sample the smaller of the horizontal offset and
     the distance to the ellipse point that ``foot_steps`` Newton steps on
     (P(t) - Q) . P'(t) = 0 reach from the sample's own parameter (either is a point of the
     paper's path).
@@ -868,9 +869,13 @@ def _transition_distance(ellipse, span, at_t1, u, shape, foot_steps):
     l_, h, k, _, _ = ellipse
     scale = l_ * span * span
     largest = 0.0
-    for row in range(u.size):
-        t = math.pi - span * u[row] if at_t1 else span * u[row]
+    # Samples by falling offset: a sample counts at most its offset, so once that is no more
+    # than the largest distance found, neither it nor any after it can raise the bound.
+    for row in order:
         offset = scale * shape[row]
+        if offset <= largest:
+            break
+        t = math.pi - span * u[row] if at_t1 else span * u[row]
         x, y, slope_x, slope_y = _ellipse_at(l_, h, k, t)
         bent_x = x - offset if at_t1 else x + offset
         bent_y = y
@@ -884,18 +889,19 @@ def _transition_distance(ellipse, span, at_t1, u, shape, foot_steps):
             foot = min(math.pi, max(0.0, foot - (gap_x * slope_x + gap_y * slope_y) / rate))
         x, y, _, _ = _ellipse_at(l_, h, k, foot)
         distance = math.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
-        largest = max(largest, min(distance, abs(offset)))
+        largest = max(largest, min(distance, offset))
     return largest
 
 
 @functools.cache
 def _distance_grid():
-    """Return the transition samples u (read-only) and the shape f(u) there, computed once."""
+    """Return the transition samples u, f(u) there and u's order by falling f (read-only)."""
     u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
     shape = np.array([_blend_shape(value)[0] for value in u])
-    u.setflags(write=False)
-    shape.setflags(write=False)
-    return u, shape
+    order = np.argsort(-shape, kind='stable')
+    for values in (u, shape, order):
+        values.setflags(write=False)
+    return u, shape, order
 
 
 @functools.cache
@@ -929,13 +935,47 @@ def _bends_one_way(ellipse, span, at_t1, u):
 
 
 @kernel
-def _slowest(bend, t):
-    """Return the smallest speed |dQ/dt| of the bend on the samples ``t`` (N,) [m/rad]."""
-    l_, h, k, span_1, span_2 = bend
+def _ellipse_slowest(ellipse, t):
+    """
+    Return the smallest speed |dP/dt| of the ellipse (l, h, k, 0, 0) on the even grid ``t``.
+
+    ``t`` falls from pi to 0. |dP/dt|**2 is a constant plus a sinusoid in 2 t: along the
+    grid, taken round (pi and 0 are the same point of it), it falls towards its minimum at
+    t* and rises beyond, so the grid's smallest value is at a sample next to t* (or next to
+    pi or 0 when t* is near them): those few samples are evaluated.
+    """
+    l_, h, k, _, _ = ellipse
+    # |dP/dt|**2 = const + R cos(2 t - psi) with R cos psi = (k**2 - l**2 - h**2) / 2 and
+    # R sin psi = -h k: the minimum is at 2 t* = psi + pi.
+    psi = math.atan2(-h * k, 0.5 * (k * k - l_ * l_ - h * h))
+    lowest = (0.5 * (psi + math.pi)) % math.pi
+    last = t.size - 1
+    nearest = int(round((math.pi - lowest) / math.pi * last))
     slowest = math.inf
-    for row in range(t.size):
-        slowest = min(slowest, _speed_at(l_, h, k, span_1, span_2, t[row]))
+    for centre in (0, nearest, last):
+        for row in range(max(centre - 4, 0), min(centre + 5, t.size)):
+            slowest = min(slowest, _speed_at(l_, h, k, 0.0, 0.0, t[row]))
     return slowest
+
+
+@kernel
+def _keeps_speed(bend, semi_minor, least, t):
+    """
+    Return whether the bend's speed |dQ/dt| is at least ``least`` on the samples ``t`` (N,).
+
+    Outside the transitions the bend is the ellipse (``least`` is below its slowest): only the
+    samples inside them are checked, and none when a bound says so: |dQ/dt| >= |dP/dt| -
+    |delta'| >= b - l span max|f'|.
+    """
+    l_, h, k, span_1, span_2 = bend
+    slope = _BLEND_SLOPE_BOUND * l_ * max(span_1, span_2)
+    if (1.0 - 1e-12) * semi_minor - slope >= least:
+        return True
+    for row in range(t.size):
+        if (math.pi - t[row]) / span_1 < 1.0 or t[row] / span_2 < 1.0:
+            if not _speed_at(l_, h, k, span_1, span_2, t[row]) >= least:
+                return False
+    return True
 
 
 def require_finite_h(h):
