@@ -406,25 +406,43 @@ def _integral_rows(bend, t_start, t_end, nodes, weights, out):
 
 
 @kernel
-def _table_rows(bend, panel_t, nodes, weights, panel_s, dt_ds, d2t_ds2):
+def _table_rows(bend, panel_t, nodes, weights, panel_s, quintics):
     """
     Fill the arc-length table at the panel bounds ``panel_t`` (N,), falling from pi to 0.
 
-    ``panel_s`` gets the arc length from T1 (Gauss-Legendre on each panel), ``dt_ds`` and
-    ``d2t_ds2`` the first two derivatives of t(s): ds/dt = -sigma, so dt/ds = -1/sigma and
-    d2t/ds2 = -sigma_t / sigma**3.
+    ``panel_s`` gets the arc length from T1 (Gauss-Legendre on each panel); row i of
+    ``quintics`` (N - 1, 7) the coefficients of t(s) on panel i in x = (s - s_i) / width
+    (x**0 to x**5) and 1 / width: the quintic through t, dt/ds and d2t/ds2 at both ends,
+    with ds/dt = -sigma, so dt/ds = -1/sigma and d2t/ds2 = -sigma_t / sigma**3.
     """
     l_, h, k, span_1, span_2 = bend
-    for row in range(panel_t.size):
+    count = panel_t.size
+    dt_ds, d2t_ds2 = np.empty(count), np.empty(count)
+    for row in range(count):
         _, _, x1, y1, x2, y2, _, _ = _bend_at(l_, h, k, span_1, span_2, panel_t[row])
         sigma = math.sqrt(x1 * x1 + y1 * y1)
         sigma_t = (x1 * x2 + y1 * y2) / sigma
         dt_ds[row] = -1.0 / sigma
         d2t_ds2[row] = -sigma_t / (sigma * sigma * sigma)
     panel_s[0] = 0.0
-    for row in range(panel_t.size - 1):
+    for row in range(count - 1):
         panel_s[row + 1] = panel_s[row] + _integral_at(
             l_, h, k, span_1, span_2, panel_t[row], panel_t[row + 1], nodes, weights)
+    for panel in range(count - 1):
+        after = panel + 1
+        width = max(panel_s[after] - panel_s[panel], 1e-300)
+        t0, t1 = panel_t[panel], panel_t[after]
+        v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
+        a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
+        # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
+        jump = t1 - t0
+        quintics[panel, 0] = t0
+        quintics[panel, 1] = v0
+        quintics[panel, 2] = 0.5 * a0
+        quintics[panel, 3] = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
+        quintics[panel, 4] = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
+        quintics[panel, 5] = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
+        quintics[panel, 6] = 1.0 / width
 
 
 class _ParametricArc:
@@ -443,17 +461,21 @@ class _ParametricArc:
     @functools.cached_property
     def _table(self):
         """
-        Arc-length table (t, s, dt/ds, d2t/ds2) at the panel bounds, t from pi (s = 0) to 0.
+        Arc-length table (t, s, quintics) at the panel bounds, t from pi (s = 0) to 0.
 
-        Every break is a panel bound, so that no quadrature panel and no
-        interpolation panel straddles one.
+        The quintics (:func:`_table_rows`) interpolate t(s) on each panel. Every break is a
+        panel bound, so that no quadrature panel and no interpolation panel straddles one.
         """
-        panel_t = np.ascontiguousarray(np.unique(np.concatenate(
-            (np.linspace(math.pi, 0.0, _N_PANELS + 1), self._breaks())))[::-1])
-        panel_s, dt_ds, d2t_ds2 = (np.empty(panel_t.size) for _ in range(3))
+        # A copy either way: the kernels take writable arrays (one compiled form).
+        panel_t = _panel_grid().copy()
+        if self._breaks():
+            panel_t = np.ascontiguousarray(
+                np.unique(np.concatenate((panel_t, self._breaks())))[::-1])
+        panel_s = np.empty(panel_t.size)
+        quintics = np.empty((panel_t.size - 1, 7))
         _table_rows(self._bend, panel_t, GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS, panel_s,
-                    dt_ds, d2t_ds2)
-        return panel_t, panel_s, dt_ds, d2t_ds2
+                    quintics)
+        return panel_t, panel_s, quintics
 
     def _integral(self, t_start, t_end):
         """Return the arc length between t_start and t_end (elementwise), >= 0."""
@@ -502,7 +524,7 @@ class _ParametricArc:
 
     def s_from_t(self, t):
         """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
-        panel_t, panel_s, _, _ = self._table
+        panel_t, panel_s, _ = self._table
         t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
         # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
         count = panel_t.size - 1
@@ -553,7 +575,9 @@ class _ParametricArc:
 
     def _curvature_grid(self, samples):
         """Return (t, kappa, dkappa/ds) on ``samples`` even steps of t, read-only."""
-        t = np.linspace(math.pi, 0.0, samples)
+        # A copy of the shared grid: the kernels take writable arrays (one compiled form).
+        t = _dense_grid().copy() if samples == _DENSE_SAMPLES else np.linspace(
+            math.pi, 0.0, samples)
         grid = (t,) + tuple(self.curvature_and_rate(t))
         for values in grid:
             values.setflags(write=False)
@@ -861,10 +885,10 @@ def _transition_distance(ellipse, span, at_t1, u, shape, order, foot_steps):
     Return an upper bound on the distance of a transition from the ellipse [m].
 
     ``ellipse`` is (l, h, k, 0, 0); ``u`` and ``shape`` are the transition's samples and
-    f(u) there, ``order`` their indices by falling f (:func:`_distance_grid`). Per sample the smaller of the horizontal offset and
-    the distance to the ellipse point that ``foot_steps`` Newton steps on
-    (P(t) - Q) . P'(t) = 0 reach from the sample's own parameter (either is a point of the
-    paper's path).
+    f(u) there, ``order`` their indices by falling f (:func:`_distance_grid`). Per sample
+    the smaller of the horizontal offset and the distance to the ellipse point that
+    ``foot_steps`` Newton steps on (P(t) - Q) . P'(t) = 0 reach from the sample's own
+    parameter (either is a point of the paper's path).
     """
     l_, h, k, _, _ = ellipse
     scale = l_ * span * span
@@ -902,6 +926,14 @@ def _distance_grid():
     for values in (u, shape, order):
         values.setflags(write=False)
     return u, shape, order
+
+
+@functools.cache
+def _panel_grid():
+    """Return the panel bounds of the arc-length table without breaks (read-only)."""
+    t = np.linspace(math.pi, 0.0, _N_PANELS + 1)
+    t.setflags(write=False)
+    return t
 
 
 @functools.cache
@@ -1168,79 +1200,93 @@ class PickPlacePath:
             line = ((self.place - self.pick) / self.length)[:, None]
             return (self.pick[:, None] + line * s, np.repeat(line, count, axis=1),
                     np.zeros((3, count)), np.zeros((3, count)))
-        rows = tuple(np.empty((3, count)) for _ in range(4))
-        _path_rows(np.ascontiguousarray(s), self._ends, self.pick, self.tangent_2, self.direction,
-                   self.midpoint, self.bend._bend, *self.bend._table, *rows)
-        return rows
+        rows = np.empty((4, 3, count))
+        _path_rows(np.ascontiguousarray(s), self._frame, *self.bend._table, rows)
+        return tuple(rows)
 
     @functools.cached_property
-    def _ends(self):
-        """Arc length at T1, at T2, the lift's, the descent's and the path's (floats)."""
+    def _frame(self):
+        """
+        Return the path as :func:`_path_rows` takes it, shape (22,).
+
+        Arc length at T1, at T2, the lift's, the descent's and the path's; P1, T2, the
+        direction u and the paper frame's origin (3 each); the bend's (l, h, k, span_1, span_2).
+        """
         _, s_t1, s_t2, _ = self.segment_ends
-        return (float(s_t1), float(s_t2), float(self.segment_lengths[0]),
-                float(self.segment_lengths[2]), self.length)
+        return np.concatenate((
+            [s_t1, s_t2, self.segment_lengths[0], self.segment_lengths[2], self.length],
+            self.pick, self.tangent_2, self.direction, self.midpoint, self.bend._bend))
 
 
 @kernel
-def _t_at(panel_t, panel_s, dt_ds, d2t_ds2, s):
-    """Return :meth:`_ParametricArc.t_from_s` of one arc length ``s`` [m]."""
+def _panel_of(panel_s, s, guess):
+    """
+    Return the panel of arc length ``s``: the last i <= N - 2 with panel_s[i] <= s (s >= 0).
+
+    Samples come sorted, mostly: the search starts from ``guess`` (the previous sample's
+    panel) and steps to a neighbour, and bisects only when ``s`` is further away.
+    """
     last = panel_s.size - 2
+    panel = min(max(guess, 0), last)
+    if panel_s[panel] <= s:
+        if panel == last or s < panel_s[panel + 1]:
+            return panel
+        if panel + 1 == last or s < panel_s[panel + 2]:
+            return panel + 1
+    return min(max(np.searchsorted(panel_s, s, side='right') - 1, 0), last)
+
+
+@kernel
+def _t_at(panel_t, panel_s, quintics, s, guess):
+    """Return :meth:`_ParametricArc.t_from_s` of one arc length ``s`` [m], and its panel."""
     s = min(max(s, 0.0), panel_s[-1])
-    panel = min(max(np.searchsorted(panel_s, s, side='right') - 1, 0), last)
-    after = panel + 1
-    s0 = panel_s[panel]
-    width = max(panel_s[after] - s0, 1e-300)
-    x = (s - s0) / width
-    t0, t1 = panel_t[panel], panel_t[after]
-    v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
-    a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
-    # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
-    jump = t1 - t0
-    c3 = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
-    c4 = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
-    c5 = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
-    value = t0 + x * (v0 + x * (0.5 * a0 + x * (c3 + x * (c4 + x * c5))))
-    return min(max(value, t1), t0)
+    panel = _panel_of(panel_s, s, guess)
+    # Element by element: a row view would cost a reference count per sample.
+    x = (s - panel_s[panel]) * quintics[panel, 6]
+    value = quintics[panel, 0] + x * (quintics[panel, 1] + x * (quintics[panel, 2] + x * (
+        quintics[panel, 3] + x * (quintics[panel, 4] + x * quintics[panel, 5]))))
+    return min(max(value, panel_t[panel + 1]), panel_t[panel]), panel
 
 
 @kernel
-def _t_from_s_rows(panel_t, panel_s, dt_ds, d2t_ds2, lengths, out):
+def _t_from_s_rows(panel_t, panel_s, quintics, lengths, out):
     """Fill ``out`` (N,) with :meth:`_ParametricArc.t_from_s` of ``lengths`` (N,)."""
+    panel = 0
     for row in range(lengths.size):
-        out[row] = _t_at(panel_t, panel_s, dt_ds, d2t_ds2, lengths[row])
+        out[row], panel = _t_at(panel_t, panel_s, quintics, lengths[row], panel)
 
 
 @kernel
-def _path_rows(s, ends, pick, tangent_2, direction, midpoint, bend, panel_t, panel_s, dt_ds,
-               d2t_ds2, position, tangent, curvature, rate):
+def _path_rows(s, frame, panel_t, panel_s, quintics, rows):
     """
-    Fill the (3, N) rows of :meth:`PickPlacePath.rows_at_lengths` at arc lengths ``s`` (N,).
+    Fill ``rows`` (4, 3, N) with :meth:`PickPlacePath.rows_at_lengths` at arc lengths ``s`` (N,).
 
-    ``ends`` is the arc length at T1, at T2, the lift's, the descent's and the path's length.
-    On the bend, with g = ds/dt = -sigma, sigma = |dP/dt| and P_n the n-th derivative by t:
-    r_s = P_1 / g, r_ss = (P_2 - g' r_s) / g**2 and r_sss = (P_3 - g'' r_s - 3 g g' r_ss) / g**3.
+    ``frame`` is :attr:`PickPlacePath._frame`. On the bend, with g = ds/dt = -sigma,
+    sigma = |dP/dt| and P_n the n-th derivative by t: r_s = P_1 / g,
+    r_ss = (P_2 - g' r_s) / g**2 and r_sss = (P_3 - g'' r_s - 3 g g' r_ss) / g**3.
     """
-    s_t1, s_t2, lift, descent, length = ends
-    l_, h, k, span_1, span_2 = bend
+    s_t1, s_t2, lift, descent, length = frame[0], frame[1], frame[2], frame[3], frame[4]
+    l_, h, k, span_1, span_2 = frame[17], frame[18], frame[19], frame[20], frame[21]
+    # Base-frame components: P1 (5-7), T2 (8-10), the direction u (11-13), the origin (14-16).
+    panel = 0
     for column in range(s.size):
         here = min(max(s[column], 0.0), length)
-        for axis in range(3):
-            tangent[axis, column] = 0.0
-            curvature[axis, column] = 0.0
-            rate[axis, column] = 0.0
+        for order in range(1, 4):
+            for axis in range(3):
+                rows[order, axis, column] = 0.0
         if here <= s_t1 and lift > 0.0:
-            position[0, column] = pick[0]
-            position[1, column] = pick[1]
-            position[2, column] = pick[2] + here
-            tangent[2, column] = 1.0
+            rows[0, 0, column] = frame[5]
+            rows[0, 1, column] = frame[6]
+            rows[0, 2, column] = frame[7] + here
+            rows[1, 2, column] = 1.0
             continue
         if here >= s_t2 and descent > 0.0:
-            position[0, column] = tangent_2[0]
-            position[1, column] = tangent_2[1]
-            position[2, column] = tangent_2[2] - (here - s_t2)
-            tangent[2, column] = -1.0
+            rows[0, 0, column] = frame[8]
+            rows[0, 1, column] = frame[9]
+            rows[0, 2, column] = frame[10] - (here - s_t2)
+            rows[1, 2, column] = -1.0
             continue
-        t = _t_at(panel_t, panel_s, dt_ds, d2t_ds2, here - s_t1)
+        t, panel = _t_at(panel_t, panel_s, quintics, here - s_t1, panel)
         x, y, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
         sigma = math.sqrt(x1 * x1 + y1 * y1)
         sigma_1 = (x1 * x2 + y1 * y2) / sigma
@@ -1257,14 +1303,15 @@ def _path_rows(s, ends, pick, tangent_2, direction, midpoint, bend, panel_t, pan
         rate_y = (y3 - g2 * tangent_y - three_g_g1 * curvature_y) * g_inv_3
         # The base frame's x, y are along the paper frame's x; its z is the paper's y.
         for axis in range(2):
-            position[axis, column] = x * direction[axis] + midpoint[axis]
-            tangent[axis, column] = tangent_x * direction[axis]
-            curvature[axis, column] = curvature_x * direction[axis]
-            rate[axis, column] = rate_x * direction[axis]
-        position[2, column] = x * direction[2] + y + midpoint[2]
-        tangent[2, column] = tangent_x * direction[2] + tangent_y
-        curvature[2, column] = curvature_x * direction[2] + curvature_y
-        rate[2, column] = rate_x * direction[2] + rate_y
+            direction = frame[11 + axis]
+            rows[0, axis, column] = x * direction + frame[14 + axis]
+            rows[1, axis, column] = tangent_x * direction
+            rows[2, axis, column] = curvature_x * direction
+            rows[3, axis, column] = rate_x * direction
+        rows[0, 2, column] = x * frame[13] + y + frame[16]
+        rows[1, 2, column] = tangent_x * frame[13] + tangent_y
+        rows[2, 2, column] = curvature_x * frame[13] + curvature_y
+        rows[3, 2, column] = rate_x * frame[13] + rate_y
 
 
 def require_coordinates(name, point):
