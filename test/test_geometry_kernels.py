@@ -135,3 +135,26 @@ def test_bend_kernels_equal_the_ellipse_and_its_offset():
     np.testing.assert_allclose(bx, x + delta[0], rtol=0, atol=1e-15)
     assert np.all(by == y)
     np.testing.assert_allclose(bend.speed(t), np.hypot(bx1, y1), rtol=1e-15)
+
+
+def test_table_and_lookup_kernels_equal_their_python_forms():
+    bend = plan_path((0.0, 0.0, -0.8), (0.3, 0.1, -0.75), 0.03, 0.02, join='g2').bend
+    panel_t, panel_s, quintics = bend._table
+    plain_s, plain_quintics = np.empty(panel_s.size), np.empty(quintics.shape)
+    geometry._table_rows.py_func(bend._bend, panel_t, geometry.GAUSS_LEGENDRE_NODES,
+                                 geometry.GAUSS_LEGENDRE_WEIGHTS, plain_s, plain_quintics)
+    np.testing.assert_allclose(panel_s, plain_s, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(quintics, plain_quintics, rtol=1e-11, atol=1e-13)
+    t = np.random.default_rng(21).uniform(-0.1, math.pi + 0.1, 300)
+    lengths = np.empty(t.size)
+    geometry._s_from_t_rows.py_func(bend._bend, panel_t, panel_s, t,
+                                    geometry.GAUSS_LEGENDRE_NODES,
+                                    geometry.GAUSS_LEGENDRE_WEIGHTS, lengths)
+    np.testing.assert_allclose(bend.s_from_t(t), lengths, rtol=1e-13, atol=1e-15)
+    back = np.empty(t.size)
+    geometry._t_from_s_rows.py_func(panel_t, panel_s, quintics, lengths, back)
+    np.testing.assert_allclose(bend.t_from_s(lengths), back, rtol=1e-13, atol=1e-15)
+    kappa, rate = np.empty(t.size), np.empty(t.size)
+    geometry._curvature_rows.py_func(bend._bend, t, kappa, rate)
+    np.testing.assert_allclose(bend.curvature_and_rate(t), (kappa, rate), rtol=1e-12,
+                               atol=1e-12)

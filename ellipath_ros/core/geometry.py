@@ -397,12 +397,17 @@ def _integral_at(l_, h, k, span_1, span_2, t_start, t_end, nodes, weights):
 
 
 @kernel
-def _integral_rows(bend, t_start, t_end, nodes, weights, out):
-    """Fill ``out`` (N,) with :func:`_integral_at` from ``t_start`` to ``t_end`` (N,)."""
+def _s_from_t_rows(bend, panel_t, panel_s, t, nodes, weights, out):
+    """Fill ``out`` (N,) with the arc length from T1 at ``t`` (N,): table plus one panel's."""
     l_, h, k, span_1, span_2 = bend
-    for row in range(t_start.size):
-        out[row] = _integral_at(l_, h, k, span_1, span_2, t_start[row], t_end[row], nodes,
-                                weights)
+    # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
+    rising = panel_t[::-1]
+    count = panel_t.size - 1
+    for row in range(t.size):
+        here = min(max(t[row], 0.0), math.pi)
+        panel = min(max(count - np.searchsorted(rising, here, side='left'), 0), count - 1)
+        out[row] = panel_s[panel] + _integral_at(l_, h, k, span_1, span_2, panel_t[panel],
+                                                 here, nodes, weights)
 
 
 @kernel
@@ -477,16 +482,6 @@ class _ParametricArc:
                     quintics)
         return panel_t, panel_s, quintics
 
-    def _integral(self, t_start, t_end):
-        """Return the arc length between t_start and t_end (elementwise), >= 0."""
-        t_start, t_end = np.broadcast_arrays(np.asarray(t_start, dtype=float),
-                                             np.asarray(t_end, dtype=float))
-        out = np.empty(t_start.size)
-        _integral_rows(self._bend, np.ascontiguousarray(t_start).reshape(-1),
-                       np.ascontiguousarray(t_end).reshape(-1), GAUSS_LEGENDRE_NODES,
-                       GAUSS_LEGENDRE_WEIGHTS, out)
-        return out.reshape(t_start.shape)
-
     def _rows(self, rows, function, t):
         """Return ``function(self._bend, t, out)``'s ``out`` (rows, N) for ``t`` (any shape)."""
         t = np.asarray(t, dtype=float)
@@ -524,12 +519,12 @@ class _ParametricArc:
 
     def s_from_t(self, t):
         """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
+        t = np.asarray(t, dtype=float)
+        out = np.empty(t.size)
         panel_t, panel_s, _ = self._table
-        t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
-        # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
-        count = panel_t.size - 1
-        panel = np.clip(count - np.searchsorted(panel_t[::-1], t, side='left'), 0, count - 1)
-        return panel_s[panel] + self._integral(panel_t[panel], t)
+        _s_from_t_rows(self._bend, panel_t, panel_s, np.ascontiguousarray(t).reshape(-1),
+                       GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS, out)
+        return out[0] if t.ndim == 0 else out.reshape(t.shape)
 
     def t_from_s(self, s):
         """
