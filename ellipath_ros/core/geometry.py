@@ -339,14 +339,15 @@ def _curvature_at(l_, h, k, span_1, span_2, t):
     centre), s growing from T1 (ds/dt = -|P'|).
     """
     _, _, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
-    sigma = math.sqrt(x1 * x1 + y1 * y1)
+    # One division: products with 1 / sigma (rounding apart, the same quotients).
+    inverse = 1.0 / math.sqrt(x1 * x1 + y1 * y1)
+    inverse_3 = inverse * inverse * inverse
     cross = x1 * y2 - y1 * x2
     cross_t = x1 * y3 - y1 * x3
-    sigma_t = (x1 * x2 + y1 * y2) / sigma
-    sigma_3 = sigma * sigma * sigma
-    kappa = cross / sigma_3
-    kappa_t = cross_t / sigma_3 - 3.0 * cross * sigma_t / (sigma_3 * sigma)
-    return kappa, -kappa_t / sigma
+    sigma_t = (x1 * x2 + y1 * y2) * inverse
+    kappa = cross * inverse_3
+    kappa_t = (cross_t - 3.0 * cross * sigma_t * inverse) * inverse_3
+    return kappa, -kappa_t * inverse
 
 
 @kernel
@@ -1284,9 +1285,10 @@ def _path_rows(s, frame, panel_t, panel_s, quintics, rows):
         t, panel = _t_at(panel_t, panel_s, quintics, here - s_t1, panel)
         x, y, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
         sigma = math.sqrt(x1 * x1 + y1 * y1)
-        sigma_1 = (x1 * x2 + y1 * y2) / sigma
-        sigma_2 = (x2 * x2 + y2 * y2 + x1 * x3 + y1 * y3) / sigma - sigma_1 * sigma_1 / sigma
+        # One division: products with g_inv = -1 / sigma (rounding apart, the same quotients).
         g_inv = -1.0 / sigma
+        sigma_1 = -(x1 * x2 + y1 * y2) * g_inv
+        sigma_2 = -(x2 * x2 + y2 * y2 + x1 * x3 + y1 * y3 - sigma_1 * sigma_1) * g_inv
         g1, g2 = -sigma_1, -sigma_2
         tangent_x, tangent_y = x1 * g_inv, y1 * g_inv
         g_inv_2 = g_inv * g_inv
