@@ -74,6 +74,8 @@ _BLEND_APEX_SHARE = 0.8
 _BLEND_MAX_SPAN = 0.45 * math.pi
 # The bent curve must keep at least this share of the ellipse's smallest parameter speed.
 _BLEND_MIN_SPEED_SHARE = 0.2
+# An upper bound on |f'(u)| on [0, 1] for the shape f of _blend_shape (0.052353 at u = 0.1225).
+_BLEND_SLOPE_BOUND = 0.0524
 # On tight, lopsided arcs a long transition bends the other way for a while (a slight S,
 # which the timing crawls through): such a span is halved until its curvature keeps its
 # sign on this many samples, then bisected this often towards the longest one that does.
@@ -255,6 +257,200 @@ def radius_of_curvature_derivatives(a, b, theta):
             (6.0 * sigma * sigma_1 ** 2 + 3.0 * sigma ** 2 * sigma_2) / ab)
 
 
+@kernel
+def _blend_shape(u):
+    """
+    Return f(u) = u**2 (1 - u)**4 / 2 and its first three derivatives, u in [0, 1] (float).
+
+    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = f''' = 0 at u = 1:
+    subtracted from the ellipse with the right scale it cancels the curvature
+    at the vertical line and vanishes to third order where it meets the
+    ellipse (curvature and its rate continuous there). Every polynomial with
+    the conditions at 0 and f = f' = f'' = 0 at 1 is
+    u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
+    p2 = 0. Gentler starts on longer spans, u**2 (1 - u)**n (1/2 + p u) with
+    n = 5 or 6, p = 1/2 to 5/4, are up to 1.5 % faster on the bench cycles and
+    on most random legs, but trip the time-optimal scan on some lopsided
+    approach legs (whole requests up to 1.9 times as long): see
+    scripts/join_study.py and the README's Joins section.
+    """
+    return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
+            u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
+            1.0 + u * (-12.0 + u * (36.0 + u * (-40.0 + 15.0 * u))),
+            -12.0 + u * (72.0 + u * (-120.0 + 60.0 * u)))
+
+
+# -- The bend evaluated on plain floats: one compiled form of each formula --------------------
+# A bend is (l, h, k, span_1, span_2): the ellipse P(t) = cos t (l, h) + sin t (0, k) and its
+# transitions (:class:`BlendedArc`); spans of 0 are the plain ellipse (:class:`EllipticArc`).
+
+@kernel
+def _offset_at(l_, span_1, span_2, t):
+    """Return the transitions' horizontal offset delta and its derivatives by t at ``t``."""
+    delta, delta_1, delta_2, delta_3 = 0.0, 0.0, 0.0, 0.0
+    # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2.
+    if span_1 > 0.0:
+        u = (math.pi - t) / span_1
+        if u < 1.0:
+            f, f1, f2, f3 = _blend_shape(u)
+            delta = -l_ * span_1 * span_1 * f
+            delta_1 = l_ * span_1 * f1
+            delta_2 = -l_ * f2
+            delta_3 = l_ * f3 / span_1
+    if span_2 > 0.0:
+        u = t / span_2
+        if u < 1.0:
+            f, f1, f2, f3 = _blend_shape(u)
+            delta = l_ * span_2 * span_2 * f
+            delta_1 = l_ * span_2 * f1
+            delta_2 = l_ * f2
+            delta_3 = l_ * f3 / span_2
+    return delta, delta_1, delta_2, delta_3
+
+
+@kernel
+def _ellipse_at(l_, h, k, t):
+    """Return x, y, dx/dt, dy/dt of the ellipse at ``t`` (d2P/dt2 = -P, d3P/dt3 = -dP/dt)."""
+    cos_t, sin_t = math.cos(t), math.sin(t)
+    return l_ * cos_t, h * cos_t + k * sin_t, -l_ * sin_t, k * cos_t - h * sin_t
+
+
+@kernel
+def _bend_at(l_, h, k, span_1, span_2, t):
+    """Return x, y and their first three derivatives by t of the bend at ``t``."""
+    x, y, x1, y1 = _ellipse_at(l_, h, k, t)
+    delta, delta_1, delta_2, delta_3 = _offset_at(l_, span_1, span_2, t)
+    return x + delta, y, x1 + delta_1, y1, delta_2 - x, -y, delta_3 - x1, -y1
+
+
+@kernel
+def _speed_at(l_, h, k, span_1, span_2, t):
+    """Return |dQ/dt| of the bend at ``t`` [m/rad]."""
+    _, _, x1, y1, _, _, _, _ = _bend_at(l_, h, k, span_1, span_2, t)
+    return math.sqrt(x1 * x1 + y1 * y1)
+
+
+@kernel
+def _curvature_at(l_, h, k, span_1, span_2, t):
+    """
+    Return the curvature kappa [1/m] and dkappa/ds [1/m**2] of the bend at ``t``.
+
+    kappa = (x' y'' - y' x'') / |P'|**3 (positive: the arc bends towards the
+    centre), s growing from T1 (ds/dt = -|P'|).
+    """
+    _, _, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
+    # One division: products with 1 / sigma (rounding apart, the same quotients).
+    inverse = 1.0 / math.sqrt(x1 * x1 + y1 * y1)
+    inverse_3 = inverse * inverse * inverse
+    cross = x1 * y2 - y1 * x2
+    cross_t = x1 * y3 - y1 * x3
+    sigma_t = (x1 * x2 + y1 * y2) * inverse
+    kappa = cross * inverse_3
+    kappa_t = (cross_t - 3.0 * cross * sigma_t * inverse) * inverse_3
+    return kappa, -kappa_t * inverse
+
+
+@kernel
+def _bend_rows(bend, t, out):
+    """Fill ``out`` (8, N) with x, y and their first three derivatives by t at ``t`` (N,)."""
+    l_, h, k, span_1, span_2 = bend
+    for row in range(t.size):
+        values = _bend_at(l_, h, k, span_1, span_2, t[row])
+        for index in range(8):
+            out[index, row] = values[index]
+
+
+@kernel
+def _offset_rows(bend, t, out):
+    """Fill ``out`` (4, N) with :func:`_offset_at` at ``t`` (N,)."""
+    l_, _, _, span_1, span_2 = bend
+    for row in range(t.size):
+        values = _offset_at(l_, span_1, span_2, t[row])
+        for index in range(4):
+            out[index, row] = values[index]
+
+
+@kernel
+def _speed_rows(bend, t, out):
+    """Fill ``out`` (N,) with the bend's speed |dQ/dt| at ``t`` (N,)."""
+    l_, h, k, span_1, span_2 = bend
+    for row in range(t.size):
+        out[row] = _speed_at(l_, h, k, span_1, span_2, t[row])
+
+
+@kernel
+def _curvature_rows(bend, t, kappa, rate):
+    """Fill ``kappa`` and ``rate`` (N,) with :func:`_curvature_at` at ``t`` (N,)."""
+    l_, h, k, span_1, span_2 = bend
+    for row in range(t.size):
+        kappa[row], rate[row] = _curvature_at(l_, h, k, span_1, span_2, t[row])
+
+
+@kernel
+def _integral_at(l_, h, k, span_1, span_2, t_start, t_end, nodes, weights):
+    """Return the arc length between ``t_start`` and ``t_end`` (Gauss-Legendre), >= 0."""
+    half = 0.5 * (t_end - t_start)
+    middle = 0.5 * (t_end + t_start)
+    total = 0.0
+    for node in range(nodes.size):
+        total += _speed_at(l_, h, k, span_1, span_2, middle + half * nodes[node]) * weights[node]
+    return abs(half) * total
+
+
+@kernel
+def _s_from_t_rows(bend, panel_t, panel_s, t, nodes, weights, out):
+    """Fill ``out`` (N,) with the arc length from T1 at ``t`` (N,): table plus one panel's."""
+    l_, h, k, span_1, span_2 = bend
+    # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
+    rising = panel_t[::-1]
+    count = panel_t.size - 1
+    for row in range(t.size):
+        here = min(max(t[row], 0.0), math.pi)
+        panel = min(max(count - np.searchsorted(rising, here, side='left'), 0), count - 1)
+        out[row] = panel_s[panel] + _integral_at(l_, h, k, span_1, span_2, panel_t[panel],
+                                                 here, nodes, weights)
+
+
+@kernel
+def _table_rows(bend, panel_t, nodes, weights, panel_s, quintics):
+    """
+    Fill the arc-length table at the panel bounds ``panel_t`` (N,), falling from pi to 0.
+
+    ``panel_s`` gets the arc length from T1 (Gauss-Legendre on each panel); row i of
+    ``quintics`` (N - 1, 7) the coefficients of t(s) on panel i in x = (s - s_i) / width
+    (x**0 to x**5) and 1 / width: the quintic through t, dt/ds and d2t/ds2 at both ends,
+    with ds/dt = -sigma, so dt/ds = -1/sigma and d2t/ds2 = -sigma_t / sigma**3.
+    """
+    l_, h, k, span_1, span_2 = bend
+    count = panel_t.size
+    dt_ds, d2t_ds2 = np.empty(count), np.empty(count)
+    for row in range(count):
+        _, _, x1, y1, x2, y2, _, _ = _bend_at(l_, h, k, span_1, span_2, panel_t[row])
+        sigma = math.sqrt(x1 * x1 + y1 * y1)
+        sigma_t = (x1 * x2 + y1 * y2) / sigma
+        dt_ds[row] = -1.0 / sigma
+        d2t_ds2[row] = -sigma_t / (sigma * sigma * sigma)
+    panel_s[0] = 0.0
+    for row in range(count - 1):
+        panel_s[row + 1] = panel_s[row] + _integral_at(
+            l_, h, k, span_1, span_2, panel_t[row], panel_t[row + 1], nodes, weights)
+    for panel in range(count - 1):
+        after = panel + 1
+        width = max(panel_s[after] - panel_s[panel], 1e-300)
+        t0, t1 = panel_t[panel], panel_t[after]
+        v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
+        a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
+        # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
+        jump = t1 - t0
+        quintics[panel, 0] = t0
+        quintics[panel, 1] = v0
+        quintics[panel, 2] = 0.5 * a0
+        quintics[panel, 3] = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
+        quintics[panel, 4] = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
+        quintics[panel, 5] = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
+        quintics[panel, 6] = 1.0 / width
+
+
 class _ParametricArc:
     """
     Arc-length bookkeeping of a plane curve P(t), t from pi (T1) to 0 (T2).
@@ -271,36 +467,65 @@ class _ParametricArc:
     @functools.cached_property
     def _table(self):
         """
-        Arc-length table (t, s, dt/ds, d2t/ds2) at the panel bounds, t from pi (s = 0) to 0.
+        Arc-length table (t, s, quintics) at the panel bounds, t from pi (s = 0) to 0.
 
-        Every break is a panel bound, so that no quadrature panel and no
-        interpolation panel straddles one.
+        The quintics (:func:`_table_rows`) interpolate t(s) on each panel. Every break is a
+        panel bound, so that no quadrature panel and no interpolation panel straddles one.
         """
-        panel_t = np.unique(np.concatenate((np.linspace(math.pi, 0.0, _N_PANELS + 1),
-                                            self._breaks())))[::-1]
-        _, d1, d2, _ = self.derivatives(panel_t)
-        sigma = np.hypot(d1[:, 0], d1[:, 1])
-        sigma_t = (d1[:, 0] * d2[:, 0] + d1[:, 1] * d2[:, 1]) / sigma
-        panel_s = np.concatenate(([0.0], np.cumsum(self._integral(panel_t[:-1], panel_t[1:]))))
-        # ds/dt = -sigma, so dt/ds = -1/sigma and d2t/ds2 = -sigma_t / sigma**3.
-        return panel_t, panel_s, -1.0 / sigma, -sigma_t / sigma ** 3
+        # A copy either way: the kernels take writable arrays (one compiled form).
+        panel_t = _panel_grid().copy()
+        if self._breaks():
+            panel_t = np.ascontiguousarray(
+                np.unique(np.concatenate((panel_t, self._breaks())))[::-1])
+        panel_s = np.empty(panel_t.size)
+        quintics = np.empty((panel_t.size - 1, 7))
+        _table_rows(self._bend, panel_t, GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS, panel_s,
+                    quintics)
+        return panel_t, panel_s, quintics
 
-    def _integral(self, t_start, t_end):
-        """Return the arc length between t_start and t_end (elementwise), >= 0."""
-        t_start = np.asarray(t_start, dtype=float)
-        t_end = np.asarray(t_end, dtype=float)
-        half = 0.5 * (t_end - t_start)
-        nodes = (0.5 * (t_end + t_start))[..., None] + half[..., None] * GAUSS_LEGENDRE_NODES
-        return np.abs(half) * (self.speed(nodes) @ GAUSS_LEGENDRE_WEIGHTS)
+    def _rows(self, rows, function, t):
+        """Return ``function(self._bend, t, out)``'s ``out`` (rows, N) for ``t`` (any shape)."""
+        t = np.asarray(t, dtype=float)
+        out = np.empty((rows, t.size))
+        function(self._bend, np.ascontiguousarray(t).reshape(-1), out)
+        return out.reshape((rows,) + t.shape)
+
+    def components(self, t):
+        """Return the (x, y) pairs of the curve and its first three derivatives by t at ``t``."""
+        x, y, x1, y1, x2, y2, x3, y3 = self._rows(8, _bend_rows, t)
+        return (x, y), (x1, y1), (x2, y2), (x3, y3)
+
+    def derivatives(self, t):
+        """Return the curve and its first three derivatives by t, each (N, 2) [m, m/rad, ...]."""
+        rows = self._rows(8, _bend_rows, np.atleast_1d(t))
+        return tuple(np.stack((rows[2 * order], rows[2 * order + 1]), axis=-1)
+                     for order in range(4))
+
+    def point(self, t):
+        """Return points of the curve, shape (N, 2) [m], for t of shape (N,) [rad]."""
+        x, y = self._rows(8, _bend_rows, t)[:2]
+        return np.stack((x, y), axis=-1)
+
+    def derivative(self, t):
+        """Return the first derivative by t, shape (N, 2) [m/rad]."""
+        x1, y1 = self._rows(8, _bend_rows, t)[2:4]
+        return np.stack((x1, y1), axis=-1)
+
+    def speed(self, t):
+        """Return |dP/dt| [m/rad], shape of ``t``."""
+        t = np.asarray(t, dtype=float)
+        out = np.empty(t.size)
+        _speed_rows(self._bend, np.ascontiguousarray(t).reshape(-1), out)
+        return out.reshape(t.shape)
 
     def s_from_t(self, t):
         """Return the arc length from T1 to P(t), shape of ``t`` [m]."""
-        panel_t, panel_s, _, _ = self._table
-        t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
-        # Panel i spans panel_t[i] >= t >= panel_t[i + 1] (panel_t falls).
-        count = panel_t.size - 1
-        panel = np.clip(count - np.searchsorted(panel_t[::-1], t, side='left'), 0, count - 1)
-        return panel_s[panel] + self._integral(panel_t[panel], t)
+        t = np.asarray(t, dtype=float)
+        out = np.empty(t.size)
+        panel_t, panel_s, _ = self._table
+        _s_from_t_rows(self._bend, panel_t, panel_s, np.ascontiguousarray(t).reshape(-1),
+                       GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS, out)
+        return out[0] if t.ndim == 0 else out.reshape(t.shape)
 
     def t_from_s(self, s):
         """
@@ -322,15 +547,10 @@ class _ParametricArc:
         kappa = (x' y'' - y' x'') / |P'|**3 (positive: the arc bends towards the
         centre), s growing from T1 (ds/dt = -|P'|).
         """
-        # Component arrays, not (N, 2) stacks and reductions over 2 columns: the same sums.
-        _, (x1, y1), (x2, y2), (x3, y3) = self.components(np.asarray(t, dtype=float))
-        sigma = np.sqrt(x1 * x1 + y1 * y1)
-        cross = x1 * y2 - y1 * x2
-        cross_t = x1 * y3 - y1 * x3
-        sigma_t = (x1 * x2 + y1 * y2) / sigma
-        kappa = cross / sigma ** 3
-        kappa_t = cross_t / sigma ** 3 - 3.0 * cross * sigma_t / sigma ** 4
-        return kappa, -kappa_t / sigma
+        t = np.ascontiguousarray(np.asarray(t, dtype=float)).reshape(-1)
+        kappa, rate = np.empty(t.size), np.empty(t.size)
+        _curvature_rows(self._bend, t, kappa, rate)
+        return kappa, rate
 
     def curvature_on_grid(self, samples):
         """
@@ -351,7 +571,9 @@ class _ParametricArc:
 
     def _curvature_grid(self, samples):
         """Return (t, kappa, dkappa/ds) on ``samples`` even steps of t, read-only."""
-        t = np.linspace(math.pi, 0.0, samples)
+        # A copy of the shared grid: the kernels take writable arrays (one compiled form).
+        t = _dense_grid().copy() if samples == _DENSE_SAMPLES else np.linspace(
+            math.pi, 0.0, samples)
         grid = (t,) + tuple(self.curvature_and_rate(t))
         for values in grid:
             values.setflags(write=False)
@@ -417,35 +639,10 @@ class EllipticArc(_ParametricArc):
         """Return no breaks: the ellipse is smooth."""
         return ()
 
-    # -- parameterisation ------------------------------------------------------------
-    def point(self, t):
-        """Return points P(t), shape (N, 2) [m], for t of shape (N,) [rad]."""
-        t = np.asarray(t, dtype=float)
-        return np.stack((self.l * np.cos(t), self.h * np.cos(t) + self.k * np.sin(t)), axis=-1)
-
-    def derivative(self, t):
-        """Return dP/dt, shape (N, 2) [m/rad]; note d2P/dt2 = -P."""
-        t = np.asarray(t, dtype=float)
-        return np.stack((-self.l * np.sin(t), -self.h * np.sin(t) + self.k * np.cos(t)),
-                        axis=-1)
-
-    def speed(self, t):
-        """Return |dP/dt|, shape (N,) [m/rad]."""
-        sin_t, cos_t = np.sin(t), np.cos(t)
-        return np.sqrt((self.l * sin_t) ** 2 + (self.k * cos_t - self.h * sin_t) ** 2)
-
-    def derivatives(self, t):
-        """Return P, dP/dt, d2P/dt2 = -P and d3P/dt3 = -dP/dt at ``t``, each (N, 2)."""
-        p = self.point(t)
-        d1 = self.derivative(t)
-        return p, d1, -p, -d1
-
-    def components(self, t):
-        """Return the (x, y) pairs of P and its first three derivatives by t at ``t`` (N,)."""
-        cos_t, sin_t = np.cos(t), np.sin(t)
-        x, y = self.l * cos_t, self.h * cos_t + self.k * sin_t
-        x1, y1 = -self.l * sin_t, self.k * cos_t - self.h * sin_t
-        return (x, y), (x1, y1), (-x, -y), (-x1, -y1)
+    @functools.cached_property
+    def _bend(self):
+        """Return (l, h, k, 0, 0): the ellipse as a bend without transitions (the kernels')."""
+        return (float(self.l), float(self.h), float(self.k), 0.0, 0.0)
 
     @property
     def tightest_t(self):
@@ -497,28 +694,6 @@ class EllipticArc(_ParametricArc):
     def end_radius(self):
         """Radius of curvature at T1 and T2, k**2 / l [m]."""
         return self.k * self.k / self.l
-
-
-def _blend_shape(u):
-    """
-    Return f(u) = u**2 (1 - u)**4 / 2 and its first three derivatives, u in [0, 1].
-
-    f(0) = f'(0) = 0, f''(0) = 1 and f = f' = f'' = f''' = 0 at u = 1:
-    subtracted from the ellipse with the right scale it cancels the curvature
-    at the vertical line and vanishes to third order where it meets the
-    ellipse (curvature and its rate continuous there). Every polynomial with
-    the conditions at 0 and f = f' = f'' = 0 at 1 is
-    u**2 (1 - u)**3 (1/2 + p1 u + p2 u**2 + ...); this one is p1 = -1/2,
-    p2 = 0. Gentler starts on longer spans, u**2 (1 - u)**n (1/2 + p u) with
-    n = 5 or 6, p = 1/2 to 5/4, are up to 1.5 % faster on the bench cycles and
-    on most random legs, but trip the time-optimal scan on some lopsided
-    approach legs (whole requests up to 1.9 times as long): see
-    scripts/join_study.py and the README's Joins section.
-    """
-    return (u * u * (1.0 + u * (-4.0 + u * (6.0 + u * (-4.0 + u)))) / 2.0,
-            u * (1.0 + u * (-6.0 + u * (12.0 + u * (-10.0 + 3.0 * u)))),
-            1.0 + u * (-12.0 + u * (36.0 + u * (-40.0 + 15.0 * u))),
-            -12.0 + u * (72.0 + u * (-120.0 + 60.0 * u)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -576,51 +751,16 @@ class BlendedArc(_ParametricArc):
         """Return where the transitions meet the ellipse (the third derivative jumps)."""
         return (math.pi - self.span_1, self.span_2)
 
+    @functools.cached_property
+    def _bend(self):
+        """Return (l, h, k, span_1, span_2): the bend as the kernels take it."""
+        ellipse = self.ellipse
+        return (float(ellipse.l), float(ellipse.h), float(ellipse.k), float(self.span_1),
+                float(self.span_2))
+
     def offset(self, t):
         """Return delta and its first three derivatives by t, each of the shape of ``t``."""
-        t = np.asarray(t, dtype=float)
-        flat = t.reshape(-1)
-        out = np.zeros((4, flat.size))
-        l_ = self.ellipse.l
-        for span, u, sign in ((self.span_1, (math.pi - flat) / self.span_1, -1.0),
-                              (self.span_2, flat / self.span_2, 1.0)):
-            near = np.flatnonzero(u < 1.0)
-            if near.size == 0:
-                continue
-            f, f1, f2, f3 = _blend_shape(u[near])
-            # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2.
-            out[0, near] = sign * l_ * span ** 2 * f
-            out[1, near] = l_ * span * f1
-            out[2, near] = sign * l_ * f2
-            out[3, near] = l_ * f3 / span
-        return out.reshape((4,) + t.shape)
-
-    def derivatives(self, t):
-        """Return Q and its first three derivatives by t, each (N, 2) [m, m/rad, ...]."""
-        p, d1, d2, d3 = self.ellipse.derivatives(t)
-        delta = self.offset(t)
-        for value, extra in zip((p, d1, d2, d3), delta):
-            value[:, 0] += extra
-        return p, d1, d2, d3
-
-    def components(self, t):
-        """Return the (x, y) pairs of Q and its first three derivatives by t at ``t`` (N,)."""
-        (x, y), (x1, y1), (x2, y2), (x3, y3) = self.ellipse.components(t)
-        delta, delta_1, delta_2, delta_3 = self.offset(t)
-        return (x + delta, y), (x1 + delta_1, y1), (x2 + delta_2, y2), (x3 + delta_3, y3)
-
-    def point(self, t):
-        """Return points Q(t), shape (N, 2) [m]."""
-        return self.derivatives(np.atleast_1d(t))[0]
-
-    def speed(self, t):
-        """Return |dQ/dt| [m/rad], shape of ``t``."""
-        t = np.asarray(t, dtype=float)
-        ellipse = self.ellipse
-        delta_1 = self.offset(t)[1]
-        sin_t, cos_t = np.sin(t), np.cos(t)
-        return np.sqrt((delta_1 - ellipse.l * sin_t) ** 2
-                       + (ellipse.k * cos_t - ellipse.h * sin_t) ** 2)
+        return self._rows(4, _offset_rows, t)
 
     @functools.cached_property
     def _tightest(self):
@@ -669,16 +809,11 @@ def blend_arc(ellipse, tolerance=DEFAULT_JOIN_TOLERANCE):
         for share, at_t1 in ((math.pi - t_apex, True), (t_apex, False)))
     span_1 = _one_way_span(ellipse, span_1, True)
     span_2 = _one_way_span(ellipse, span_2, False)
-    t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
-    speed = ellipse.speed(t)
-    slowest = float(speed.min())
+    t = _dense_grid()
+    least = _BLEND_MIN_SPEED_SHARE * _ellipse_slowest(ellipse._bend, t)
     for _ in range(20):
         bent = BlendedArc(ellipse, span_1, span_2)
-        # Outside the transitions the bent curve is the ellipse: only they can be slower.
-        inside = ((math.pi - t) / span_1 < 1.0) | (t / span_2 < 1.0)
-        bent_slowest = min(float(bent.speed(t[inside]).min(initial=math.inf)),
-                           float(speed[~inside].min(initial=math.inf)))
-        if bent_slowest >= _BLEND_MIN_SPEED_SHARE * slowest:
+        if _keeps_speed(bent._bend, ellipse.b, least, t):
             return bent
         span_1, span_2 = 0.5 * span_1, 0.5 * span_2
     raise DegenerateGeometryError(
@@ -697,12 +832,12 @@ def _one_way_span(ellipse, span, at_t1):
     between the two (a shorter span moves the curve less from the ellipse, so it
     stays within the tolerance).
     """
-    if _bends_one_way(ellipse, span, at_t1):
+    if _bends_one_way(ellipse._bend, span, at_t1, _sign_grid()):
         return span
     low, high = span, span
     for _ in range(_BLEND_SIGN_HALVINGS):
         high, low = low, 0.5 * low
-        if _bends_one_way(ellipse, low, at_t1):
+        if _bends_one_way(ellipse._bend, low, at_t1, _sign_grid()):
             break
     else:
         raise DegenerateGeometryError(
@@ -710,21 +845,11 @@ def _one_way_span(ellipse, span, at_t1):
             f'h = {ellipse.h:.6g} m, got none; use join paper')
     for _ in range(_BLEND_SIGN_BISECTIONS):
         middle = 0.5 * (low + high)
-        if _bends_one_way(ellipse, middle, at_t1):
+        if _bends_one_way(ellipse._bend, middle, at_t1, _sign_grid()):
             low = middle
         else:
             high = middle
     return low
-
-
-def _bends_one_way(ellipse, span, at_t1):
-    """Return whether the transition of ``span`` at T1 (``at_t1``) or T2 has curvature >= 0."""
-    # Its start (u = 0) has curvature 0, up to rounding: only the samples after it count.
-    u = np.linspace(0.0, 1.0, _BLEND_SIGN_SAMPLES)[1:]
-    t = math.pi - span * u if at_t1 else span * u
-    # Both spans alike: the two transitions never overlap (each is within _BLEND_MAX_SPAN).
-    kappa = BlendedArc(ellipse, span, span).curvature_and_rate(t)[0]
-    return bool(kappa.min() >= 0.0)
 
 
 def _longest_span(ellipse, tolerance, safe, cap, at_t1):
@@ -739,7 +864,8 @@ def _longest_span(ellipse, tolerance, safe, cap, at_t1):
     limit = (1.0 - _BLEND_DISTANCE_MARGIN) * tolerance
     best = span = min(safe, cap)
     for _ in range(_BLEND_SPAN_STEPS):
-        distance = _transition_distance(ellipse, span, at_t1)
+        distance = _transition_distance(ellipse._bend, span, at_t1, *_distance_grid(),
+                                        _BLEND_FOOT_STEPS)
         if distance <= limit:
             best = max(best, span)
         following = min(span * math.sqrt(limit / distance), cap)
@@ -749,46 +875,135 @@ def _longest_span(ellipse, tolerance, safe, cap, at_t1):
     return best
 
 
-def _transition_distance(ellipse, span, at_t1):
+@kernel
+def _transition_distance(ellipse, span, at_t1, u, shape, order, foot_steps):
     """
     Return an upper bound on the distance of a transition from the ellipse [m].
 
-    Per sample the smaller of the horizontal offset and the distance to the
-    ellipse point that ``_BLEND_FOOT_STEPS`` Newton steps on
-    (P(t) - Q) . P'(t) = 0 reach from the sample's own parameter (either is a
-    point of the paper's path).
+    ``ellipse`` is (l, h, k, 0, 0); ``u`` and ``shape`` are the transition's samples and
+    f(u) there, ``order`` their indices by falling f (:func:`_distance_grid`). Per sample
+    the smaller of the horizontal offset and the distance to the ellipse point that
+    ``foot_steps`` Newton steps on (P(t) - Q) . P'(t) = 0 reach from the sample's own
+    parameter (either is a point of the paper's path).
     """
-    u, shape = _distance_grid()
-    t = math.pi - span * u if at_t1 else span * u
-    offset = ellipse.l * span ** 2 * shape
-    # This runs a dozen times per path: component arrays, and the first foot step starts where
-    # the bent curve's samples already are.
-    (x, y), (slope_x, slope_y), _, _ = ellipse.components(t)
-    bent_x = x - offset if at_t1 else x + offset
-    bent_y = y
-    foot = t
-    for step in range(_BLEND_FOOT_STEPS):
-        if step:
-            (x, y), (slope_x, slope_y), _, _ = ellipse.components(foot)
-        gap_x, gap_y = x - bent_x, y - bent_y
-        # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
-        rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
-        # np.clip(foot, 0, pi) without its dispatch cost (bounds first, as clip keeps -0.0).
-        foot = np.minimum(math.pi, np.maximum(
-            0.0, foot - (gap_x * slope_x + gap_y * slope_y) / rate))
-    (x, y), _, _, _ = ellipse.components(foot)
-    distance = np.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
-    return float(np.minimum(distance, np.abs(offset)).max())
+    l_, h, k, _, _ = ellipse
+    scale = l_ * span * span
+    largest = 0.0
+    # Samples by falling offset: a sample counts at most its offset, so once that is no more
+    # than the largest distance found, neither it nor any after it can raise the bound.
+    for row in order:
+        offset = scale * shape[row]
+        if offset <= largest:
+            break
+        t = math.pi - span * u[row] if at_t1 else span * u[row]
+        x, y, slope_x, slope_y = _ellipse_at(l_, h, k, t)
+        bent_x = x - offset if at_t1 else x + offset
+        bent_y = y
+        foot = t
+        for step in range(foot_steps):
+            if step:
+                x, y, slope_x, slope_y = _ellipse_at(l_, h, k, foot)
+            gap_x, gap_y = x - bent_x, y - bent_y
+            # d/dt of gap . P' is |P'|**2 + gap . P'' with P'' = -P.
+            rate = (slope_x * slope_x + slope_y * slope_y) - (gap_x * x + gap_y * y)
+            foot = min(math.pi, max(0.0, foot - (gap_x * slope_x + gap_y * slope_y) / rate))
+        x, y, _, _ = _ellipse_at(l_, h, k, foot)
+        distance = math.sqrt((x - bent_x) ** 2 + (y - bent_y) ** 2)
+        largest = max(largest, min(distance, offset))
+    return largest
 
 
 @functools.cache
 def _distance_grid():
-    """Return the transition samples u (read-only) and the shape f(u) there, computed once."""
+    """Return the transition samples u, f(u) there and u's order by falling f (read-only)."""
     u = np.linspace(0.0, 1.0, _BLEND_DISTANCE_SAMPLES)
-    shape = _blend_shape(u)[0]
+    shape = np.array([_blend_shape(value)[0] for value in u])
+    order = np.argsort(-shape, kind='stable')
+    for values in (u, shape, order):
+        values.setflags(write=False)
+    return u, shape, order
+
+
+@functools.cache
+def _panel_grid():
+    """Return the panel bounds of the arc-length table without breaks (read-only)."""
+    t = np.linspace(math.pi, 0.0, _N_PANELS + 1)
+    t.setflags(write=False)
+    return t
+
+
+@functools.cache
+def _sign_grid():
+    """Return the transition samples u of the sign check, computed once (read-only)."""
+    # Its start (u = 0) has curvature 0, up to rounding: only the samples after it count.
+    u = np.linspace(0.0, 1.0, _BLEND_SIGN_SAMPLES)[1:]
     u.setflags(write=False)
-    shape.setflags(write=False)
-    return u, shape
+    return u
+
+
+@functools.cache
+def _dense_grid():
+    """Return ``_DENSE_SAMPLES`` even steps of t from pi to 0, computed once (read-only)."""
+    t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
+    t.setflags(write=False)
+    return t
+
+
+@kernel
+def _bends_one_way(ellipse, span, at_t1, u):
+    """Return whether the transition of ``span`` at T1 (``at_t1``) or T2 has curvature >= 0."""
+    l_, h, k, _, _ = ellipse
+    # Both spans alike: the two transitions never overlap (each is within _BLEND_MAX_SPAN).
+    for row in range(u.size):
+        t = math.pi - span * u[row] if at_t1 else span * u[row]
+        kappa, _ = _curvature_at(l_, h, k, span, span, t)
+        if not kappa >= 0.0:
+            return False
+    return True
+
+
+@kernel
+def _ellipse_slowest(ellipse, t):
+    """
+    Return the smallest speed |dP/dt| of the ellipse (l, h, k, 0, 0) on the even grid ``t``.
+
+    ``t`` falls from pi to 0. |dP/dt|**2 is a constant plus a sinusoid in 2 t: along the
+    grid, taken round (pi and 0 are the same point of it), it falls towards its minimum at
+    t* and rises beyond, so the grid's smallest value is at a sample next to t* (or next to
+    pi or 0 when t* is near them): those few samples are evaluated.
+    """
+    l_, h, k, _, _ = ellipse
+    # |dP/dt|**2 = const + R cos(2 t - psi) with R cos psi = (k**2 - l**2 - h**2) / 2 and
+    # R sin psi = -h k: the minimum is at 2 t* = psi + pi.
+    psi = math.atan2(-h * k, 0.5 * (k * k - l_ * l_ - h * h))
+    lowest = (0.5 * (psi + math.pi)) % math.pi
+    last = t.size - 1
+    nearest = int(round((math.pi - lowest) / math.pi * last))
+    slowest = math.inf
+    for centre in (0, nearest, last):
+        for row in range(max(centre - 4, 0), min(centre + 5, t.size)):
+            slowest = min(slowest, _speed_at(l_, h, k, 0.0, 0.0, t[row]))
+    return slowest
+
+
+@kernel
+def _keeps_speed(bend, semi_minor, least, t):
+    """
+    Return whether the bend's speed |dQ/dt| is at least ``least`` on the samples ``t`` (N,).
+
+    Outside the transitions the bend is the ellipse (``least`` is below its slowest): only the
+    samples inside them are checked, and none when a bound says so: |dQ/dt| >= |dP/dt| -
+    |delta'| >= b - l span max|f'|.
+    """
+    l_, h, k, span_1, span_2 = bend
+    slope = _BLEND_SLOPE_BOUND * l_ * max(span_1, span_2)
+    if (1.0 - 1e-12) * semi_minor - slope >= least:
+        return True
+    for row in range(t.size):
+        if (math.pi - t[row]) / span_1 < 1.0 or t[row] / span_2 < 1.0:
+            if not _speed_at(l_, h, k, span_1, span_2, t[row]) >= least:
+                return False
+    return True
 
 
 def require_finite_h(h):
@@ -974,85 +1189,106 @@ class PickPlacePath:
             Position, unit tangent, curvature vector d2p/ds2 and d3p/ds3, each (3, N).
 
         """
-        s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, self.length)
+        s = np.atleast_1d(np.asarray(s, dtype=float))
         count = s.shape[0]
         if self.arc is None:
+            s = np.clip(s, 0.0, self.length)
             line = ((self.place - self.pick) / self.length)[:, None]
             return (self.pick[:, None] + line * s, np.repeat(line, count, axis=1),
                     np.zeros((3, count)), np.zeros((3, count)))
-        position = np.empty((3, count))
-        tangent = np.zeros((3, count))
-        curvature = np.zeros((3, count))
-        rate = np.zeros((3, count))
+        rows = np.empty((4, 3, count))
+        _path_rows(np.ascontiguousarray(s), self._frame, *self.bend._table, rows)
+        return tuple(rows)
+
+    @functools.cached_property
+    def _frame(self):
+        """
+        Return the path as :func:`_path_rows` takes it, shape (22,).
+
+        Arc length at T1, at T2, the lift's, the descent's and the path's; P1, T2, the
+        direction u and the paper frame's origin (3 each); the bend's (l, h, k, span_1, span_2).
+        """
         _, s_t1, s_t2, _ = self.segment_ends
-        lift_mask = (s <= s_t1) & (self.segment_lengths[0] > 0.0)
-        descent_mask = (s >= s_t2) & ~lift_mask & (self.segment_lengths[2] > 0.0)
-        on_arc_mask = ~(lift_mask | descent_mask)
-        lift, descent, on_arc = (_selector(mask) for mask in
-                                 (lift_mask, descent_mask, on_arc_mask))
-        position[:2, lift] = self.pick[:2, None]
-        position[2, lift] = self.pick[2] + s[lift]
-        tangent[2, lift] = 1.0
-        position[:2, descent] = self.tangent_2[:2, None]
-        position[2, descent] = self.tangent_2[2] - (s[descent] - s_t2)
-        tangent[2, descent] = -1.0
-        if on_arc_mask.any():
-            self._evaluate_arc(s[on_arc] - s_t1, on_arc, position, tangent, curvature, rate)
-        return position, tangent, curvature, rate
-
-    def _evaluate_arc(self, s_arc, mask, position, tangent, curvature, rate):
-        """
-        Fill the bend samples (columns ``mask`` of the (3, N) rows): derivatives by s from t.
-
-        With g = ds/dt = -sigma, sigma = |dP/dt| and P_n the n-th derivative by
-        t: r_s = P_1 / g, r_ss = (P_2 - g' r_s) / g**2 and
-        r_sss = (P_3 - g'' r_s - 3 g g' r_ss) / g**3.
-        """
-        t = self.bend.t_from_s(s_arc)
-        components = np.array([value for pair in self.bend.components(t) for value in pair])
-        columns = (np.arange(mask.start, mask.stop) if isinstance(mask, slice)
-                   else mask)
-        _arc_rows(components, np.ascontiguousarray(self.direction, dtype=float),
-                  np.ascontiguousarray(self.midpoint, dtype=float), columns, position, tangent,
-                  curvature, rate)
+        return np.concatenate((
+            [s_t1, s_t2, self.segment_lengths[0], self.segment_lengths[2], self.length],
+            self.pick, self.tangent_2, self.direction, self.midpoint, self.bend._bend))
 
 
 @kernel
-def _t_from_s_rows(panel_t, panel_s, dt_ds, d2t_ds2, lengths, out):
-    """Fill ``out`` (N,) with :meth:`_ParametricArc.t_from_s` of ``lengths`` (N,)."""
+def _panel_of(panel_s, s, guess):
+    """
+    Return the panel of arc length ``s``: the last i <= N - 2 with panel_s[i] <= s (s >= 0).
+
+    Samples come sorted, mostly: the search starts from ``guess`` (the previous sample's
+    panel) and steps to a neighbour, and bisects only when ``s`` is further away.
+    """
     last = panel_s.size - 2
-    for row in range(lengths.size):
-        s = min(max(lengths[row], 0.0), panel_s[-1])
-        panel = min(max(np.searchsorted(panel_s, s, side='right') - 1, 0), last)
-        after = panel + 1
-        s0 = panel_s[panel]
-        width = max(panel_s[after] - s0, 1e-300)
-        x = (s - s0) / width
-        t0, t1 = panel_t[panel], panel_t[after]
-        v0, v1 = dt_ds[panel] * width, dt_ds[after] * width
-        a0, a1 = d2t_ds2[panel] * width * width, d2t_ds2[after] * width * width
-        # The quintic through (t0, v0, a0) at x = 0 and (t1, v1, a1) at x = 1.
-        jump = t1 - t0
-        c3 = 10.0 * jump - 6.0 * v0 - 4.0 * v1 - 1.5 * a0 + 0.5 * a1
-        c4 = -15.0 * jump + 8.0 * v0 + 7.0 * v1 + 1.5 * a0 - a1
-        c5 = 6.0 * jump - 3.0 * (v0 + v1) - 0.5 * (a0 - a1)
-        value = t0 + x * (v0 + x * (0.5 * a0 + x * (c3 + x * (c4 + x * c5))))
-        out[row] = min(max(value, t1), t0)
+    panel = min(max(guess, 0), last)
+    if panel_s[panel] <= s:
+        if panel == last or s < panel_s[panel + 1]:
+            return panel
+        if panel + 1 == last or s < panel_s[panel + 2]:
+            return panel + 1
+    return min(max(np.searchsorted(panel_s, s, side='right') - 1, 0), last)
 
 
 @kernel
-def _arc_rows(components, direction, midpoint, columns, position, tangent, curvature, rate):
-    """
-    Fill ``columns`` of the (3, N) rows from the bend's (x, y) and derivatives by t (8, M).
+def _t_at(panel_t, panel_s, quintics, s, guess):
+    """Return :meth:`_ParametricArc.t_from_s` of one arc length ``s`` [m], and its panel."""
+    s = min(max(s, 0.0), panel_s[-1])
+    panel = _panel_of(panel_s, s, guess)
+    # Element by element: a row view would cost a reference count per sample.
+    x = (s - panel_s[panel]) * quintics[panel, 6]
+    value = quintics[panel, 0] + x * (quintics[panel, 1] + x * (quintics[panel, 2] + x * (
+        quintics[panel, 3] + x * (quintics[panel, 4] + x * quintics[panel, 5]))))
+    return min(max(value, panel_t[panel + 1]), panel_t[panel]), panel
 
-    See :meth:`PickPlacePath._evaluate_arc`.
+
+@kernel
+def _t_from_s_rows(panel_t, panel_s, quintics, lengths, out):
+    """Fill ``out`` (N,) with :meth:`_ParametricArc.t_from_s` of ``lengths`` (N,)."""
+    panel = 0
+    for row in range(lengths.size):
+        out[row], panel = _t_at(panel_t, panel_s, quintics, lengths[row], panel)
+
+
+@kernel
+def _path_rows(s, frame, panel_t, panel_s, quintics, rows):
     """
-    for row in range(columns.size):
-        x, y, x1, y1, x2, y2, x3, y3 = components[:, row]
+    Fill ``rows`` (4, 3, N) with :meth:`PickPlacePath.rows_at_lengths` at arc lengths ``s`` (N,).
+
+    ``frame`` is :attr:`PickPlacePath._frame`. On the bend, with g = ds/dt = -sigma,
+    sigma = |dP/dt| and P_n the n-th derivative by t: r_s = P_1 / g,
+    r_ss = (P_2 - g' r_s) / g**2 and r_sss = (P_3 - g'' r_s - 3 g g' r_ss) / g**3.
+    """
+    s_t1, s_t2, lift, descent, length = frame[0], frame[1], frame[2], frame[3], frame[4]
+    l_, h, k, span_1, span_2 = frame[17], frame[18], frame[19], frame[20], frame[21]
+    # Base-frame components: P1 (5-7), T2 (8-10), the direction u (11-13), the origin (14-16).
+    panel = 0
+    for column in range(s.size):
+        here = min(max(s[column], 0.0), length)
+        for order in range(1, 4):
+            for axis in range(3):
+                rows[order, axis, column] = 0.0
+        if here <= s_t1 and lift > 0.0:
+            rows[0, 0, column] = frame[5]
+            rows[0, 1, column] = frame[6]
+            rows[0, 2, column] = frame[7] + here
+            rows[1, 2, column] = 1.0
+            continue
+        if here >= s_t2 and descent > 0.0:
+            rows[0, 0, column] = frame[8]
+            rows[0, 1, column] = frame[9]
+            rows[0, 2, column] = frame[10] - (here - s_t2)
+            rows[1, 2, column] = -1.0
+            continue
+        t, panel = _t_at(panel_t, panel_s, quintics, here - s_t1, panel)
+        x, y, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
         sigma = math.sqrt(x1 * x1 + y1 * y1)
-        sigma_1 = (x1 * x2 + y1 * y2) / sigma
-        sigma_2 = (x2 * x2 + y2 * y2 + x1 * x3 + y1 * y3) / sigma - sigma_1 * sigma_1 / sigma
+        # One division: products with g_inv = -1 / sigma (rounding apart, the same quotients).
         g_inv = -1.0 / sigma
+        sigma_1 = -(x1 * x2 + y1 * y2) * g_inv
+        sigma_2 = -(x2 * x2 + y2 * y2 + x1 * x3 + y1 * y3 - sigma_1 * sigma_1) * g_inv
         g1, g2 = -sigma_1, -sigma_2
         tangent_x, tangent_y = x1 * g_inv, y1 * g_inv
         g_inv_2 = g_inv * g_inv
@@ -1062,30 +1298,17 @@ def _arc_rows(components, direction, midpoint, columns, position, tangent, curva
         g_inv_3 = g_inv_2 * g_inv
         rate_x = (x3 - g2 * tangent_x - three_g_g1 * curvature_x) * g_inv_3
         rate_y = (y3 - g2 * tangent_y - three_g_g1 * curvature_y) * g_inv_3
-        column = columns[row]
         # The base frame's x, y are along the paper frame's x; its z is the paper's y.
         for axis in range(2):
-            position[axis, column] = x * direction[axis] + midpoint[axis]
-            tangent[axis, column] = tangent_x * direction[axis]
-            curvature[axis, column] = curvature_x * direction[axis]
-            rate[axis, column] = rate_x * direction[axis]
-        position[2, column] = x * direction[2] + y + midpoint[2]
-        tangent[2, column] = tangent_x * direction[2] + tangent_y
-        curvature[2, column] = curvature_x * direction[2] + curvature_y
-        rate[2, column] = rate_x * direction[2] + rate_y
-
-
-def _selector(mask):
-    """
-    Return the samples where ``mask`` (N,) holds: a slice if they are contiguous, else indices.
-
-    Samples sorted by length (the usual case) fall into one run per segment,
-    and writing a slice costs about half as much as a boolean mask.
-    """
-    index = np.flatnonzero(mask)
-    if index.size and index[-1] - index[0] + 1 == index.size:
-        return slice(int(index[0]), int(index[-1]) + 1)
-    return index
+            direction = frame[11 + axis]
+            rows[0, axis, column] = x * direction + frame[14 + axis]
+            rows[1, axis, column] = tangent_x * direction
+            rows[2, axis, column] = curvature_x * direction
+            rows[3, axis, column] = rate_x * direction
+        rows[0, 2, column] = x * frame[13] + y + frame[16]
+        rows[1, 2, column] = tangent_x * frame[13] + tangent_y
+        rows[2, 2, column] = curvature_x * frame[13] + curvature_y
+        rows[3, 2, column] = rate_x * frame[13] + rate_y
 
 
 def require_coordinates(name, point):
