@@ -25,7 +25,7 @@ path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench
 2. ``shapes``: the transition f(u) = u²(1-u)ⁿ(1/2 + p1 u + p2 u²) for several (n, p1, p2),
    each with spans from the closed-form horizontal bound and from the distance to the
    ellipse (the production rule, :func:`ellipath_ros.core.geometry.blend_arc`); the
-   production shape is n = 6, p1 = 5/4, p2 = 0.
+   production shape is n = 4, p1 = p2 = 0, i.e. u²(1-u)⁴/2.
 3. ``timing``: the same cycles with the scan's shares of the limits raised (is the join
    speed handling conservative?).
 4. ``tolerance``: the production design at several ``join_tolerance``.
@@ -42,7 +42,11 @@ path without jerk limit or join cap (the bench's ``cycle`` ratio), for the bench
 
 The shapes are swapped in by replacing the geometry module's ``_blend_shape`` and
 ``_BLEND_PEAK`` for the duration of one measurement, and clearing its cached distance grid
-(which holds the shape's samples) on the way in and out (a study, not an API).
+(which holds the shape's samples) on the way in and out (a study, not an API). Compiled
+kernels freeze the functions and constants they call when they are compiled, so a swap
+would reach only part of the code: the study runs the kernels as plain Python
+(``NUMBA_DISABLE_JIT=1``, set by the script itself, which then takes minutes), where every
+call reads the module's current values.
 
     PYTHONPATH=. python3 scripts/join_study.py [corners shapes timing tolerance pairs requests
                                                  entry]
@@ -51,6 +55,7 @@ The shapes are swapped in by replacing the geometry module's ``_blend_shape`` an
 import contextlib
 from dataclasses import replace
 import math
+import os
 import sys
 import time
 
@@ -69,8 +74,8 @@ from numpy.polynomial import Polynomial
 
 LIMITS = replace(CartesianLimits(), max_accel_jump=25.0)
 CLEARANCE = 0.025
-# (n, p1, p2) of the shapes u²(1-u)ⁿ(1/2 + p1 u + p2 u²) studied; (4, 0, 0) is the former
-# production shape, (6, 1.25, 0) the current one.
+# (n, p1, p2) of the shapes u²(1-u)ⁿ(1/2 + p1 u + p2 u²) studied; (4, 0, 0) is the production
+# shape.
 SHAPES = ((3, 0.0, 0.0), (4, 0.0, 0.0), (4, 1.0, 0.0), (5, 0.5, 0.0), (5, 1.0, 0.0),
           (6, 0.5, 0.0), (6, 1.0, 0.0), (6, 1.25, 0.0), (6, 1.5, 0.0), (7, 1.5, 0.0),
           (8, 2.0, 0.0), (10, 3.0, 0.0))
@@ -336,6 +341,10 @@ STUDIES = {'corners': corners, 'shapes': shapes, 'timing': timing_variants,
 
 
 def main(argv):
+    if os.environ.get('NUMBA_DISABLE_JIT') != '1':
+        # Start again with plain-Python kernels, before any is compiled (see the docstring).
+        os.execve(sys.executable, [sys.executable, *sys.argv],
+                  {**os.environ, 'NUMBA_DISABLE_JIT': '1'})
     print('cycles: ' + ' | '.join(case[0] for case in CYCLES))
     for name in argv or STUDIES:
         STUDIES[name]()
