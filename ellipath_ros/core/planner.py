@@ -518,8 +518,7 @@ def _joint_points(motion, config, bounds, samples=None):
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
     trajectory, error = minimal_knots(motion, geometry, config.joint_names,
                                       config.knot_tolerance, samples=samples)
-    step_times, step_sizes = motion.jerk_steps()
-    steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
+    steps = None
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
     for _ in range(_KNOT_ROUNDS):
@@ -529,6 +528,10 @@ def _joint_points(motion, config, bounds, samples=None):
             table > (1.0 + _QUINTIC_EXCESS) * samples.segment_peaks(times))).any(axis=1))
         if broken.size == 0:
             break
+        if steps is None:
+            # Only a leg with a broken segment needs its jerk steps.
+            step_times, step_sizes = motion.jerk_steps()
+            steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
         added = []
         for index in broken:
             start, end = times[index], times[index + 1]
