@@ -452,11 +452,11 @@ def _rates(points, q, velocities, accelerations, qdot, geometry, name):
     rates = np.array(qdot, dtype=float) if given else np.empty(points.shape)
     qddot = np.empty(points.shape)
     geometry_args = _joint_geometry(geometry)
-    for row in range(points.shape[0]):
-        arm, diagonal = _rate_row(points, velocities, accelerations, row, *geometry_args[:6],
-                                  geometry_args[9], q, rates, qddot, given)
-        if arm >= 0:
-            raise _joint_failure(points, row, _IK_SINGULAR, arm, diagonal, geometry, name)
+    row, arm, diagonal = _rate_rows(
+        *(np.ascontiguousarray(value) for value in (points, velocities, accelerations, q)),
+        *geometry_args[:2], *geometry_args[4:6], geometry_args[9], rates, qddot, given)
+    if row >= 0:
+        raise _joint_failure(points, row, _IK_SINGULAR, arm, diagonal, geometry, name)
     return rates, qddot
 
 
@@ -791,7 +791,7 @@ def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, join
     named: above the base (or not finite), outside an arm's sphere, beyond a joint limit.
     """
     x, y, z = points[row, 0], points[row, 1], points[row, 2]
-    if not (z < 0.0 and abs(x) < np.inf and abs(y) < np.inf):
+    if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
         return _IK_ABOVE, 0
     fore_sq = forearm * forearm
     upper_sq = upper * upper
@@ -819,8 +819,8 @@ def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_ma
 
 
 @kernel
-def _rate_row(points, velocities, accelerations, row, rx, ry, tx, ty, offset, upper,
-              singular_diagonal, q, qdot, qddot, given_qdot):
+def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, singular_diagonal,
+              q, qdot, qddot, given_qdot):
     """
     Joint rates of row ``row`` (analytic Jacobian); return (singular arm or -1, its s.b).
 
@@ -829,11 +829,9 @@ def _rate_row(points, velocities, accelerations, row, rx, ry, tx, ty, offset, up
     ``B = diag(s_i . b_i)``, ``b_i = dB_i/dq_i``; once more, with ``c_i = d^2B_i/dq_i^2``,
     ``q_ddot_i = (s_i . p_ddot + |s_dot_i|^2 - (s_i . c_i) q_dot_i^2) / (s_i . b_i)``,
     ``s_dot_i = p_dot - b_i q_dot_i``. ``q_dot`` is read from ``qdot[row]`` if
-    ``given_qdot``, else written there. The arm named at a singularity is the one with the
-    smallest ``|s_i . b_i|``.
+    ``given_qdot``, else written there.
     """
     x, y, z = points[row, 0], points[row, 1], points[row, 2]
-    smallest, smallest_arm = np.inf, -1
     for arm in range(3):
         cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
         reach = -offset - upper * cos_q
@@ -841,8 +839,8 @@ def _rate_row(points, velocities, accelerations, row, rx, ry, tx, ty, offset, up
         sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
         bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
         diagonal = sx * bx + sy * by + sz * bz
-        if abs(diagonal) < smallest:
-            smallest, smallest_arm = abs(diagonal), arm
+        if abs(diagonal) < singular_diagonal:
+            return _smallest_diagonal(points, row, rx, ry, offset, upper, q)
         if not given_qdot:
             qdot[row, arm] = (sx * velocities[row, 0] + sy * velocities[row, 1]
                               + sz * velocities[row, 2]) / diagonal
@@ -856,14 +854,34 @@ def _rate_row(points, velocities, accelerations, row, rx, ry, tx, ty, offset, up
                      - (sx * (-upper_cos * rx[arm]) + sy * (-upper_cos * ry[arm])
                         + sz * upper_sin) * rate * rate)
         qddot[row, arm] = numerator / diagonal
-    if smallest < singular_diagonal:
-        cos_q, sin_q = math.cos(q[row, smallest_arm]), math.sin(q[row, smallest_arm])
-        reach = -offset - upper * cos_q
-        diagonal = ((x + reach * rx[smallest_arm]) * (-upper * sin_q * rx[smallest_arm])
-                    + (y + reach * ry[smallest_arm]) * (-upper * sin_q * ry[smallest_arm])
-                    + (z + upper * sin_q) * (-upper * cos_q))
-        return smallest_arm, diagonal
     return -1, 0.0
+
+
+@kernel
+def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, singular_diagonal,
+               qdot, qddot, given_qdot):
+    """Run :func:`_rate_row` on every row; return the first singular (row, arm, s.b) or row -1."""
+    for row in range(points.shape[0]):
+        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper,
+                                  singular_diagonal, q, qdot, qddot, given_qdot)
+        if arm >= 0:
+            return row, arm, diagonal
+    return -1, 0, 0.0
+
+
+@kernel
+def _smallest_diagonal(points, row, rx, ry, offset, upper, q):
+    """Return the arm of row ``row`` with the smallest ``|s_i . b_i|``, and that value."""
+    smallest, smallest_arm = np.inf, 0
+    for arm in range(3):
+        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+        reach = -offset - upper * cos_q
+        diagonal = ((points[row, 0] + reach * rx[arm]) * (-upper * sin_q * rx[arm])
+                    + (points[row, 1] + reach * ry[arm]) * (-upper * sin_q * ry[arm])
+                    + (points[row, 2] + upper * sin_q) * (-upper * cos_q))
+        if abs(diagonal) < abs(smallest):
+            smallest, smallest_arm = diagonal, arm
+    return smallest_arm, smallest
 
 
 @kernel
@@ -881,8 +899,8 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
                               joint_max, q)
         if status != _IK_OK:
             return row, status, arm, q[row, arm]
-        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, tx, ty,
-                                  offset, upper, singular_diagonal, q, qdot, qddot, False)
+        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset,
+                                  upper, singular_diagonal, q, qdot, qddot, False)
         if arm >= 0:
             return row, _IK_SINGULAR, arm, diagonal
     return -1, _IK_OK, 0, 0.0

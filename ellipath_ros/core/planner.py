@@ -38,7 +38,7 @@ from .joint_trajectory import (
     sample_joint_trajectory, validate_jtc)
 from .kinematics import (
     assembled_joint_rates, DeltaGeometry, forward_kinematics, inverse_kinematics,
-    joint_velocities, JointLimits, largest_magnitude_per_row, reachable)
+    joint_velocities, JointLimits, largest_magnitude_per_row)
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
@@ -290,16 +290,18 @@ def _check_reach_and_speed_cap(path, config):
     """
     count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
-    samples = path.at_lengths(s)
-    rates = assembled_joint_rates(samples.position, samples.tangent, config.geometry)
-    if rates is None or not reachable(path.apex, config.geometry):
+    position, tangent = path.rows_at_lengths(s)[:2]
+    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
+    points, directions = np.empty((count + 1, 3)), np.zeros((count + 1, 3))
+    points[:-1], points[-1], directions[:-1] = position.T, path.apex, tangent.T
+    rates = assembled_joint_rates(points, directions, config.geometry)
+    if rates is None:
         # Named as always: the first of the samples and the apex out of reach, else the first
         # sample at a singularity.
-        points = np.vstack((samples.position, path.apex))
         q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
-        dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
+        dq_ds = joint_velocities(points[:-1], q, directions[:-1], config.geometry)
     else:
-        dq_ds = rates[1]
+        dq_ds = rates[1][:-1]
     caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
         largest_magnitude_per_row(dq_ds), 1e-12)
 
