@@ -775,9 +775,15 @@ _IK_OK, _IK_ABOVE, _IK_OUTSIDE, _IK_LIMIT, _IK_SINGULAR = range(5)
 
 
 @kernel
-def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q):
+def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q,
+            trig):
     """
     Elbow-out IK of ``points[row]`` into ``q[row]``; return (status, failing arm).
+
+    ``trig`` (2, 3) receives cos q and sin q of every arm, from the same quantities without
+    a trigonometric call: with ``rho^2 = u^2 + z^2`` and ``sqrt(D^2 + G^2) = 2 L1 rho``,
+    ``cos q = (u G - z sqrt(D)) / (2 L1 rho^2)`` and
+    ``sin q = -(z G + u sqrt(D)) / (2 L1 rho^2)``.
 
     The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
     tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
@@ -802,7 +808,12 @@ def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, join
         discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
         if discriminant < 0.0:
             return _IK_OUTSIDE, arm
-        q[row, arm] = -math.atan2(z, u) - math.atan2(math.sqrt(discriminant), g)
+        root = math.sqrt(discriminant)
+        scale = 1.0 / (2.0 * upper * (u * u + z * z))
+        cos_q = (u * g - z * root) * scale
+        sin_q = -(z * g + u * root) * scale
+        trig[0, arm], trig[1, arm] = cos_q, sin_q
+        q[row, arm] = math.atan2(sin_q, cos_q)
     for arm in range(3):
         if q[row, arm] < joint_min or q[row, arm] > joint_max:
             return _IK_LIMIT, arm
@@ -813,14 +824,15 @@ def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, join
 def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q, status,
              arms):
     """:func:`_ik_row` of every row: ``status`` and ``arms`` (N,) receive its result."""
+    trig = np.empty((2, 3))
     for row in range(points.shape[0]):
         status[row], arms[row] = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm,
-                                         joint_min, joint_max, q)
+                                         joint_min, joint_max, q, trig)
 
 
 @kernel
 def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, singular_diagonal,
-              q, qdot, qddot, given_qdot):
+              trig, qdot, qddot, given_qdot):
     """
     Joint rates of row ``row`` (analytic Jacobian); return (singular arm or -1, its s.b).
 
@@ -828,19 +840,19 @@ def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, sin
     the standard Delta form ``A p_dot = B q_dot`` with rows ``A_i = s_i^T`` and
     ``B = diag(s_i . b_i)``, ``b_i = dB_i/dq_i``; once more, with ``c_i = d^2B_i/dq_i^2``,
     ``q_ddot_i = (s_i . p_ddot + |s_dot_i|^2 - (s_i . c_i) q_dot_i^2) / (s_i . b_i)``,
-    ``s_dot_i = p_dot - b_i q_dot_i``. ``q_dot`` is read from ``qdot[row]`` if
-    ``given_qdot``, else written there.
+    ``s_dot_i = p_dot - b_i q_dot_i``. ``trig`` (2, 3) holds cos q and sin q of the
+    arms; ``q_dot`` is read from ``qdot[row]`` if ``given_qdot``, else written there.
     """
     x, y, z = points[row, 0], points[row, 1], points[row, 2]
     for arm in range(3):
-        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+        cos_q, sin_q = trig[0, arm], trig[1, arm]
         reach = -offset - upper * cos_q
         upper_sin, upper_cos = upper * sin_q, upper * cos_q
         sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
         bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
         diagonal = sx * bx + sy * by + sz * bz
         if abs(diagonal) < singular_diagonal:
-            return _smallest_diagonal(points, row, rx, ry, offset, upper, q)
+            return _smallest_diagonal(points, row, rx, ry, offset, upper, trig)
         if not given_qdot:
             qdot[row, arm] = (sx * velocities[row, 0] + sy * velocities[row, 1]
                               + sz * velocities[row, 2]) / diagonal
@@ -861,20 +873,23 @@ def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, sin
 def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, singular_diagonal,
                qdot, qddot, given_qdot):
     """Run :func:`_rate_row` on every row; return the first singular (row, arm, s.b) or row -1."""
+    trig = np.empty((2, 3))
     for row in range(points.shape[0]):
+        for arm in range(3):
+            trig[0, arm], trig[1, arm] = math.cos(q[row, arm]), math.sin(q[row, arm])
         arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper,
-                                  singular_diagonal, q, qdot, qddot, given_qdot)
+                                  singular_diagonal, trig, qdot, qddot, given_qdot)
         if arm >= 0:
             return row, arm, diagonal
     return -1, 0, 0.0
 
 
 @kernel
-def _smallest_diagonal(points, row, rx, ry, offset, upper, q):
+def _smallest_diagonal(points, row, rx, ry, offset, upper, trig):
     """Return the arm of row ``row`` with the smallest ``|s_i . b_i|``, and that value."""
     smallest, smallest_arm = np.inf, 0
     for arm in range(3):
-        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
+        cos_q, sin_q = trig[0, arm], trig[1, arm]
         reach = -offset - upper * cos_q
         diagonal = ((points[row, 0] + reach * rx[arm]) * (-upper * sin_q * rx[arm])
                     + (points[row, 1] + reach * ry[arm]) * (-upper * sin_q * ry[arm])
@@ -894,13 +909,14 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
     singularity) and returns (row, status, arm, value) for :func:`_joint_failure`;
     row -1 when every row succeeds.
     """
+    trig = np.empty((2, 3))
     for row in range(points.shape[0]):
         status, arm = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min,
-                              joint_max, q)
+                              joint_max, q, trig)
         if status != _IK_OK:
             return row, status, arm, q[row, arm]
         arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset,
-                                  upper, singular_diagonal, q, qdot, qddot, False)
+                                  upper, singular_diagonal, trig, qdot, qddot, False)
         if arm >= 0:
             return row, _IK_SINGULAR, arm, diagonal
     return -1, _IK_OK, 0, 0.0
