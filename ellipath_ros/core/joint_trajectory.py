@@ -349,7 +349,7 @@ def _interpolate_rows(coefficients, knots, times, last, values):
     Fill ``values`` (D + 1, N, 3) with JTC's position and D derivatives at ``times`` (N,).
 
     In the segment whose start is the last knot <= t (the first before the first knot),
-    by :func:`_horner`'s operations; from the last knot on, ``last`` (D + 1, 3).
+    by :func:`_polynomial`; from the last knot on, ``last`` (D + 1, 3).
     """
     order = values.shape[0] - 1
     final = knots.size - 2
@@ -363,14 +363,9 @@ def _interpolate_rows(coefficients, knots, times, last, values):
         if x < 0.0:
             x = 0.0
         c = coefficients[segment]
-        for j in range(3):
-            values[0, row, j] = _quintic(c, j, x)
-            if order >= 1:
-                values[1, row, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x
-                                       + 3.0 * c[3, j]) * x + 2.0 * c[2, j]) * x + c[1, j])
-            if order >= 2:
-                values[2, row, j] = (((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x
-                                      + 6.0 * c[3, j]) * x + 2.0 * c[2, j])
+        for derivative in range(order + 1):
+            for j in range(3):
+                values[derivative, row, j] = _polynomial(c, j, x, derivative)
 
 
 def _quintic_coefficients(knots, start, end):
@@ -483,28 +478,43 @@ def evaluate_polynomials(coefficients, offset, derivatives=True):
 
 
 def _evaluate(coefficients, offset, order):
+    """Return the polynomials (S, 6, J) and their derivatives up to ``order`` at (S, M)."""
+    coefficients = np.ascontiguousarray(coefficients, dtype=float)
+    offset = np.ascontiguousarray(offset, dtype=float)
+    values = np.empty((order + 1,) + offset.shape + (coefficients.shape[2],))
+    _polynomial_rows(coefficients, offset, values)
+    return tuple(values)
+
+
+@kernel
+def _polynomial_rows(coefficients, offsets, values):
+    """Fill ``values`` (D + 1, S, M, J) with polynomials (S, 6, J) and D derivatives."""
+    for segment in range(offsets.shape[0]):
+        c = coefficients[segment]
+        for sample in range(offsets.shape[1]):
+            x = offsets[segment, sample]
+            for derivative in range(values.shape[0]):
+                for j in range(c.shape[1]):
+                    values[derivative, segment, sample, j] = _polynomial(c, j, x, derivative)
+
+
+@kernel
+def _polynomial(c, j, x, derivative):
     """
-    Return the polynomials (S, 6, 3) and their derivatives up to ``order`` at (S, M).
+    Return the ``derivative``-th derivative (0 to 3) of column j of ``c`` (6, J) at ``x``.
 
-    Computed per joint, (3, S, M), and returned as (S, M, 3) views: the same
-    products as broadcasting (S, 1, 3) against (S, M, 1), whose innermost loop
-    runs over only 3 joints (several times slower).
+    The one evaluation of JTC's polynomials (``sum c[k] x**k``, Horner's scheme) in this
+    module.
     """
-    values = _horner(coefficients.transpose(1, 2, 0)[..., np.newaxis], offset, order)
-    return tuple(np.moveaxis(value, 0, -1) for value in values)
-
-
-def _horner(c, x, order):
-    """Return sum c[k] x**k (c of shape (6, 3, ...)) and its derivatives up to ``order``."""
-    values = [((((c[5] * x + c[4]) * x + c[3]) * x + c[2]) * x + c[1]) * x + c[0]]
-    if order >= 1:
-        values.append((((5.0 * c[5] * x + 4.0 * c[4]) * x + 3.0 * c[3]) * x + 2.0 * c[2]) * x
-                      + c[1])
-    if order >= 2:
-        values.append(((20.0 * c[5] * x + 12.0 * c[4]) * x + 6.0 * c[3]) * x + 2.0 * c[2])
-    if order >= 3:
-        values.append((60.0 * c[5] * x + 24.0 * c[4]) * x + 6.0 * c[3])
-    return values
+    if derivative == 0:
+        return ((((c[5, j] * x + c[4, j]) * x + c[3, j]) * x + c[2, j]) * x + c[1, j]) * x + (
+            c[0, j])
+    if derivative == 1:
+        return (((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x + 3.0 * c[3, j]) * x
+                + 2.0 * c[2, j]) * x + c[1, j]
+    if derivative == 2:
+        return ((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x + 6.0 * c[3, j]) * x + 2.0 * c[2, j]
+    return (60.0 * c[5, j] * x + 24.0 * c[4, j]) * x + 6.0 * c[3, j]
 
 
 def _motion_duration(motion):
@@ -715,7 +725,8 @@ def _deviations(knot_times, positions, velocities, accelerations, start, end, fr
                 for axis in range(3):
                     expected[0, axis] = planned[row, axis]
             error = np.inf
-            if _forward_row(_quintic(c, 0, x), _quintic(c, 1, x), _quintic(c, 2, x), rx, ry,
+            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
+                            _polynomial(c, 2, x, 0), rx, ry,
                             offset, upper, forearm_sq, reached, 0) == _ASSEMBLED:
                 dx = reached[0, 0] - expected[0, 0]
                 dy = reached[0, 1] - expected[0, 1]
@@ -1157,33 +1168,79 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
         Naming the joint, the quantity, the bound, the value and its time.
 
     """
-    times = traj.time_from_start
-    positions, velocities, accelerations = (traj.positions, traj.velocities,
-                                            traj.accelerations)
     extra = int(require_range('samples_per_segment', samples_per_segment, 0.0))
-    if extra > 0 and times.size > 1:
-        fractions = np.arange(extra + 1) / (extra + 1.0)
-        grid = (times[:-1, np.newaxis] + np.diff(times)[:, np.newaxis] * fractions).ravel()
-        times = np.append(grid, times[-1])
-        positions, velocities, accelerations = quintic_interpolate(traj, times)
     low, high = geometry.joint_min, geometry.joint_max
     vmax, amax = joint_limits.max_velocity, joint_limits.max_acceleration
-    broken = np.stack([(positions < low) | (positions > high),
-                       np.abs(velocities) > vmax,
-                       np.abs(accelerations) > amax], axis=1)  # (K, quantity, joint)
-    if not broken.any():
+    found = np.empty(2)
+    quantity, joint = _joint_limit_rows(
+        traj.time_from_start, traj.positions, traj.velocities, traj.accelerations, extra, low,
+        high, vmax, amax, found)
+    if quantity < 0:
         return
-    sample, quantity, joint = np.unravel_index(int(np.argmax(broken.ravel())), broken.shape)
     name = traj.joint_names[joint]
-    when = f'at t={times[sample]:.6g} s'
+    when = f'at t={found[0]:.6g} s'
     if quantity == 0:
         raise LimitError(f'{name} position: expected a value in [{low:g}, {high:g}] rad, got '
-                         f'{positions[sample, joint]:.6g} {when}')
+                         f'{found[1]:.6g} {when}')
     if quantity == 1:
         raise LimitError(f'{name} velocity: expected |q\u0307| \u2264 {vmax:g} rad/s, got '
-                         f'{velocities[sample, joint]:.6g} {when}')
+                         f'{found[1]:.6g} {when}')
     raise LimitError(f'{name} acceleration: expected |q\u0308| \u2264 {amax:g} rad/s^2, got '
-                     f'{accelerations[sample, joint]:.6g} {when}')
+                     f'{found[1]:.6g} {when}')
+
+
+@kernel
+def _joint_limit_rows(times, positions, velocities, accelerations, extra, low, high, vmax,
+                      amax, found):
+    """
+    Return (quantity, joint) of the first joint-limit violation of :func:`check_joint_limits`.
+
+    With ``extra`` > 0 JTC's quintic of every segment is checked at its start and ``extra``
+    interior points, evenly spaced, then the last point; else the points. Quantity 0 is the
+    position, 1 the velocity, 2 the acceleration, -1 none; ``found`` receives its time and
+    value.
+    """
+    c = np.empty((6, 3))
+    state = np.empty((3, 3))
+    count = times.size
+    interpolated = extra > 0 and count > 1
+    for segment in range(count - 1 if interpolated else 0):
+        length = times[segment + 1] - times[segment]
+        _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
+                      accelerations, segment, segment + 1, c)
+        for sample in range(extra + 1):
+            x = length * (sample / (extra + 1.0))
+            for derivative in range(3):
+                for j in range(3):
+                    state[derivative, j] = _polynomial(c, j, x, derivative)
+            quantity, joint = _limit_broken(state, low, high, vmax, amax)
+            if quantity >= 0:
+                found[0], found[1] = times[segment] + x, state[quantity, joint]
+                return quantity, joint
+    for point in range(count - 1 if interpolated else 0, count):
+        for j in range(3):
+            state[0, j], state[1, j] = positions[point, j], velocities[point, j]
+            state[2, j] = accelerations[point, j]
+        quantity, joint = _limit_broken(state, low, high, vmax, amax)
+        if quantity >= 0:
+            found[0], found[1] = times[point], state[quantity, joint]
+            return quantity, joint
+    return -1, 0
+
+
+@kernel
+def _limit_broken(state, low, high, vmax, amax):
+    """Return (quantity, joint) of the first limit ``state`` (q; q_dot; q_ddot) breaks."""
+    for j in range(3):
+        if state[0, j] < low or state[0, j] > high:
+            return 0, j
+    for j in range(3):
+        if abs(state[1, j]) > vmax:
+            return 1, j
+    for j in range(3):
+        if abs(state[2, j]) > amax:
+            return 2, j
+    return -1, 0
 
 
 def segment_polynomials(traj):
@@ -1266,12 +1323,6 @@ def executed_table(trajectory, geometry, previous=None):
     return table
 
 
-@kernel
-def _quintic(c, j, x):
-    """Return joint j's polynomial ``c`` (6, 3) at ``x``, in :func:`_horner`'s order."""
-    return ((((c[5, j] * x + c[4, j]) * x + c[3, j]) * x + c[2, j]) * x + c[1, j]) * x + c[0, j]
-
-
 def _segment_peaks(coefficients, lengths, geometry, samples):
     """Return, per segment, the refined sampled peaks in the order of ``EXECUTED_KEYS``."""
     coefficients = np.ascontiguousarray(coefficients)
@@ -1350,12 +1401,10 @@ def _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work, out
     """
     q, qdot, qddot, qdddot, tcp, scratch = work
     for j in range(3):
-        q[0, j] = _quintic(c, j, x)
-        qdot[0, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x + 3.0 * c[3, j]) * x
-                       + 2.0 * c[2, j]) * x + c[1, j])
-        qddot[0, j] = ((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x + 6.0 * c[3, j]) * x + (
-            2.0 * c[2, j])
-        qdddot[0, j] = (60.0 * c[5, j] * x + 24.0 * c[4, j]) * x + 6.0 * c[3, j]
+        q[0, j] = _polynomial(c, j, x, 0)
+        qdot[0, j] = _polynomial(c, j, x, 1)
+        qddot[0, j] = _polynomial(c, j, x, 2)
+        qdddot[0, j] = _polynomial(c, j, x, 3)
     state = _tcp_row(q, qdot, qddot, qdddot, 0, rx, ry, offset, upper, forearm_sq, coplanar,
                      tcp[0], tcp[1], tcp[2], tcp[3], scratch)
     for key in range(3):
