@@ -163,12 +163,12 @@ class SafeWorkspace:
         single = array.ndim == 1
         array = np.ascontiguousarray(np.atleast_2d(array))
         ok = np.empty(array.shape[0], dtype=np.bool_)
-        _inside_rows(array, self.radius, self.z_min, self.z_max, self._box_table(),
+        _inside_rows(array, self.radius, self.z_min, self.z_max, self.box_table(),
                      float(tolerance), ok)
         return ok[0] if single else ok
 
-    def _box_table(self):
-        """Return the keep-out boxes as an array (B, 6), the compiled loops' form."""
+    def box_table(self):
+        """Return the keep-out boxes as an array (B, 6), the form :func:`inside` takes."""
         return np.array(self.keep_out_boxes, dtype=float).reshape(-1, len(_BOX_FIELDS))
 
     def check(self, points, name='points', times=None, tolerance=_TOLERANCE):
@@ -224,7 +224,7 @@ class SafeWorkspace:
         if radial > self.radius + tolerance:
             return (f'{radial:.6g} m from the z axis, beyond workspace_radius = '
                     f'{self.radius:g} m by {radial - self.radius:.4g} m')
-        box = _box_of(point[0], point[1], point[2], self._box_table(), tolerance)
+        box = _box_of(point[0], point[1], point[2], self.box_table(), tolerance)
         return f'inside keep_out_boxes[{box}] = {list(self.keep_out_boxes[box])} m'
 
 
@@ -241,10 +241,22 @@ def _box_of(x, y, z, boxes, tolerance):
 
 @kernel
 def _inside_rows(points, radius, z_min, z_max, boxes, tolerance, ok):
-    """Fill ``ok`` (N,): row n of ``points`` finite, in the cylinder and in no box."""
+    """Fill ``ok`` (N,) with :func:`inside` of every row of ``points``."""
     for row in range(points.shape[0]):
-        x, y, z = points[row, 0], points[row, 1], points[row, 2]
-        ok[row] = (abs(x) + abs(y) + abs(z) < np.inf
-                   and math.hypot(x, y) <= radius + tolerance
-                   and z_min - tolerance <= z <= z_max + tolerance
-                   and _box_of(x, y, z, boxes, tolerance) < 0)
+        ok[row] = inside(points[row, 0], points[row, 1], points[row, 2], radius, z_min, z_max,
+                         boxes, tolerance)
+
+
+@kernel
+def inside(x, y, z, radius, z_min, z_max, boxes, tolerance):
+    """
+    Tell whether the point is finite, in the cylinder and in no keep-out box (compiled).
+
+    The one containment test (:meth:`SafeWorkspace.contains` runs it on every row), for
+    compiled loops that check points as they make them; ``boxes`` is
+    :meth:`SafeWorkspace.box_table`.
+    """
+    return (abs(x) + abs(y) + abs(z) < np.inf
+            and math.hypot(x, y) <= radius + tolerance
+            and z_min - tolerance <= z <= z_max + tolerance
+            and _box_of(x, y, z, boxes, tolerance) < 0)
