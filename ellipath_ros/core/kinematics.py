@@ -755,7 +755,7 @@ def _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq, cop
                       + rate[2, arm] * accel[2])
         s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
         s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot ** 3.0) + 3.0 * s_c * w_dot * w_ddot
+        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot * w_dot * w_dot) + 3.0 * s_c * w_dot * w_ddot
                     - 3.0 * rate_accel)
     _solve(columns, rhs, inverse_det, jerk, row)
     return state
