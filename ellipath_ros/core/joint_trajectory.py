@@ -44,7 +44,6 @@ from ellipath_ros.core.kinematics import _forward_row
 from ellipath_ros.core.kinematics import _kernel_geometry
 from ellipath_ros.core.kinematics import _tcp_row
 from ellipath_ros.core.kinematics import joint_motion
-from ellipath_ros.core.kinematics import largest_magnitude_per_row
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -821,23 +820,11 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
-        values = self._peak_values
-        first = np.searchsorted(self.times, times[:-1], side='left')
-        last = np.searchsorted(self.times, times[1:], side='right')
-        # reduceat over [first, last) per interval; an interval without a sample of its own
-        # takes the sample at its start.
-        ends = np.maximum(last, first + 1)
-        bounds = np.ravel(np.column_stack((first, ends)))
-        return np.maximum.reduceat(np.vstack((values, values[-1:])), bounds, axis=0)[::2]
-
-    @functools.cached_property
-    def _peak_values(self):
-        """Per-sample TCP speed, acceleration, jerk norms, largest |q_dot|, |q_ddot|, (N, 5)."""
-        # Built once: every knot round asks for the peaks of new intervals of the same samples.
-        return np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
-                                (self.velocity, self.acceleration, self.jerk)]
-                               + [largest_magnitude_per_row(self.qdot),
-                                  largest_magnitude_per_row(self.qddot)])
+        peaks = np.empty((times.size - 1, len(EXECUTED_KEYS)))
+        _interval_peaks(self.times, *(np.ascontiguousarray(values) for values in (
+            self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
+            np.ascontiguousarray(times, dtype=float), peaks)
+        return peaks
 
     def states(self, times, low=None, high=None):
         """
@@ -905,6 +892,32 @@ class MotionSamples:
                              np.ascontiguousarray(self.position[keep].T),
                              np.ascontiguousarray(self.velocity[keep].T))
         return self._planned
+
+
+@kernel
+def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, times, peaks):
+    """
+    Fill ``peaks`` (K - 1, 5) with :meth:`MotionSamples.segment_peaks` on ``times`` (K,).
+
+    Interval i takes the samples from the first at or after ``times[i]`` to the last at or
+    before ``times[i + 1]``, at least one (the one at its start, the last if none follows).
+    """
+    count = sample_times.size
+    for interval in range(times.size - 1):
+        first = np.searchsorted(sample_times, times[interval])
+        end = max(np.searchsorted(sample_times, times[interval + 1], side='right'), first + 1)
+        for key in range(5):
+            peaks[interval, key] = 0.0
+        for sample in range(first, end):
+            row = min(sample, count - 1)
+            for key, vector in enumerate((velocity, acceleration, jerk)):
+                norm = math.sqrt(vector[row, 0] * vector[row, 0] + vector[row, 1] * vector[row, 1]
+                                 + vector[row, 2] * vector[row, 2])
+                peaks[interval, key] = max(peaks[interval, key], norm)
+            peaks[interval, 3] = max(peaks[interval, 3], abs(qdot[row, 0]), abs(qdot[row, 1]),
+                                     abs(qdot[row, 2]))
+            peaks[interval, 4] = max(peaks[interval, 4], abs(qddot[row, 0]), abs(qddot[row, 1]),
+                                     abs(qddot[row, 2]))
 
 
 @kernel
