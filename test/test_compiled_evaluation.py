@@ -75,8 +75,10 @@ def _evaluations():
         still, still), (still, still, still))
     results.append(samples.planned(rng.uniform(0.0, times[-1], 30)))
     index = np.arange(7)
-    results.append(_segment_errors(samples.planned, geometry, knots, index, index + 1,
+    results.append(_segment_errors(samples, None, geometry, knots, index, index + 1,
                                    np.arange(1, 21) / 21.0))
+    results.append(_segment_errors(samples, samples.planned, geometry, knots, index,
+                                   index + 1, np.arange(1, 21) / 21.0))
     return results
 
 

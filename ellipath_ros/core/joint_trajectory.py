@@ -44,7 +44,6 @@ from ellipath_ros.core.kinematics import _forward_row
 from ellipath_ros.core.kinematics import _kernel_geometry
 from ellipath_ros.core.kinematics import _tcp_row
 from ellipath_ros.core.kinematics import joint_motion
-from ellipath_ros.core.kinematics import largest_magnitude_per_row
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -349,7 +348,7 @@ def _interpolate_rows(coefficients, knots, times, last, values):
     Fill ``values`` (D + 1, N, 3) with JTC's position and D derivatives at ``times`` (N,).
 
     In the segment whose start is the last knot <= t (the first before the first knot),
-    by :func:`_horner`'s operations; from the last knot on, ``last`` (D + 1, 3).
+    by :func:`_polynomial`; from the last knot on, ``last`` (D + 1, 3).
     """
     order = values.shape[0] - 1
     final = knots.size - 2
@@ -363,14 +362,9 @@ def _interpolate_rows(coefficients, knots, times, last, values):
         if x < 0.0:
             x = 0.0
         c = coefficients[segment]
-        for j in range(3):
-            values[0, row, j] = _quintic(c, j, x)
-            if order >= 1:
-                values[1, row, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x
-                                       + 3.0 * c[3, j]) * x + 2.0 * c[2, j]) * x + c[1, j])
-            if order >= 2:
-                values[2, row, j] = (((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x
-                                      + 6.0 * c[3, j]) * x + 2.0 * c[2, j])
+        for derivative in range(order + 1):
+            for j in range(3):
+                values[derivative, row, j] = _polynomial(c, j, x, derivative)
 
 
 def _quintic_coefficients(knots, start, end):
@@ -445,21 +439,30 @@ def interpolation_coefficients(duration, q0, q1, v0=None, v1=None, a0=None, a1=N
 def _quintic_rows(h, q0, q1, v0, v1, a0, a1, coefficients):
     """Fill the quintic ``coefficients`` (S, 6, 3) of :func:`interpolation_coefficients`."""
     for row in range(h.size):
-        length = h[row]
-        h2 = length * length
-        for j in range(q0.shape[1]):
-            dq = q1[row, j] - q0[row, j]
-            start_v, end_v = v0[row, j], v1[row, j]
-            start_a, end_a = a0[row, j], a1[row, j]
-            coefficients[row, 0, j] = q0[row, j]
-            coefficients[row, 1, j] = start_v
-            coefficients[row, 2, j] = 0.5 * start_a
-            coefficients[row, 3, j] = (20.0 * dq - (8.0 * end_v + 12.0 * start_v) * length
-                                       - (3.0 * start_a - end_a) * h2) / (2.0 * h2 * length)
-            coefficients[row, 4, j] = (-30.0 * dq + (14.0 * end_v + 16.0 * start_v) * length
-                                       + (3.0 * start_a - 2.0 * end_a) * h2) / (2.0 * h2 * h2)
-            coefficients[row, 5, j] = (12.0 * dq - 6.0 * (end_v + start_v) * length
-                                       - (start_a - end_a) * h2) / (2.0 * h2 * h2 * length)
+        _fill_quintic(h[row], q0, q1, v0, v1, a0, a1, row, row, coefficients[row])
+
+
+@kernel
+def _fill_quintic(length, q0, q1, v0, v1, a0, a1, first, second, c):
+    """
+    Fill ``c`` (6, 3) with JTC's quintic from row ``first`` of q0, v0, a0 to ``second`` of q1...
+
+    The one form of the coefficients: every quintic of this module is built here.
+    """
+    h2 = length * length
+    for j in range(3):
+        dq = q1[second, j] - q0[first, j]
+        start_v, end_v = v0[first, j], v1[second, j]
+        start_a, end_a = a0[first, j], a1[second, j]
+        c[0, j] = q0[first, j]
+        c[1, j] = start_v
+        c[2, j] = 0.5 * start_a
+        c[3, j] = (20.0 * dq - (8.0 * end_v + 12.0 * start_v) * length
+                   - (3.0 * start_a - end_a) * h2) / (2.0 * h2 * length)
+        c[4, j] = (-30.0 * dq + (14.0 * end_v + 16.0 * start_v) * length
+                   + (3.0 * start_a - 2.0 * end_a) * h2) / (2.0 * h2 * h2)
+        c[5, j] = (12.0 * dq - 6.0 * (end_v + start_v) * length
+                   - (start_a - end_a) * h2) / (2.0 * h2 * h2 * length)
 
 
 def evaluate_polynomials(coefficients, offset, derivatives=True):
@@ -474,28 +477,43 @@ def evaluate_polynomials(coefficients, offset, derivatives=True):
 
 
 def _evaluate(coefficients, offset, order):
+    """Return the polynomials (S, 6, J) and their derivatives up to ``order`` at (S, M)."""
+    coefficients = np.ascontiguousarray(coefficients, dtype=float)
+    offset = np.ascontiguousarray(offset, dtype=float)
+    values = np.empty((order + 1,) + offset.shape + (coefficients.shape[2],))
+    _polynomial_rows(coefficients, offset, values)
+    return tuple(values)
+
+
+@kernel
+def _polynomial_rows(coefficients, offsets, values):
+    """Fill ``values`` (D + 1, S, M, J) with polynomials (S, 6, J) and D derivatives."""
+    for segment in range(offsets.shape[0]):
+        c = coefficients[segment]
+        for sample in range(offsets.shape[1]):
+            x = offsets[segment, sample]
+            for derivative in range(values.shape[0]):
+                for j in range(c.shape[1]):
+                    values[derivative, segment, sample, j] = _polynomial(c, j, x, derivative)
+
+
+@kernel
+def _polynomial(c, j, x, derivative):
     """
-    Return the polynomials (S, 6, 3) and their derivatives up to ``order`` at (S, M).
+    Return the ``derivative``-th derivative (0 to 3) of column j of ``c`` (6, J) at ``x``.
 
-    Computed per joint, (3, S, M), and returned as (S, M, 3) views: the same
-    products as broadcasting (S, 1, 3) against (S, M, 1), whose innermost loop
-    runs over only 3 joints (several times slower).
+    The one evaluation of JTC's polynomials (``sum c[k] x**k``, Horner's scheme) in this
+    module.
     """
-    values = _horner(coefficients.transpose(1, 2, 0)[..., np.newaxis], offset, order)
-    return tuple(np.moveaxis(value, 0, -1) for value in values)
-
-
-def _horner(c, x, order):
-    """Return sum c[k] x**k (c of shape (6, 3, ...)) and its derivatives up to ``order``."""
-    values = [((((c[5] * x + c[4]) * x + c[3]) * x + c[2]) * x + c[1]) * x + c[0]]
-    if order >= 1:
-        values.append((((5.0 * c[5] * x + 4.0 * c[4]) * x + 3.0 * c[3]) * x + 2.0 * c[2]) * x
-                      + c[1])
-    if order >= 2:
-        values.append(((20.0 * c[5] * x + 12.0 * c[4]) * x + 6.0 * c[3]) * x + 2.0 * c[2])
-    if order >= 3:
-        values.append((60.0 * c[5] * x + 24.0 * c[4]) * x + 6.0 * c[3])
-    return values
+    if derivative == 0:
+        return ((((c[5, j] * x + c[4, j]) * x + c[3, j]) * x + c[2, j]) * x + c[1, j]) * x + (
+            c[0, j])
+    if derivative == 1:
+        return (((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x + 3.0 * c[3, j]) * x
+                + 2.0 * c[2, j]) * x + c[1, j]
+    if derivative == 2:
+        return ((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x + 6.0 * c[3, j]) * x + 2.0 * c[2, j]
+    return (60.0 * c[5, j] * x + 24.0 * c[4, j]) * x + 6.0 * c[3, j]
 
 
 def _motion_duration(motion):
@@ -641,46 +659,77 @@ class _Knots:
                       self.velocities[index], self.accelerations[index])
 
 
-def _segment_errors(planned, geometry, knots, start, end, fractions):
+def _segment_errors(samples, planned, geometry, knots, start, end, fractions):
     """
     Largest TCP deviation of JTC's interpolation on each segment start[s] -> end[s].
 
-    The check grid of a segment is its interior at ``fractions`` (M,) of its length;
-    ``planned`` maps times (N,) to the planned TCP positions (N, 3). Returns shape (S,); a
+    The check grid of a segment is its interior at ``fractions`` (M,) of its length. The
+    planned TCP positions there are interpolated from the table of ``samples``
+    (:meth:`MotionSamples.planned_table`), or, if ``planned`` is given, taken from it: a
+    function of the check times (S M,) returning positions (S M, 3). Returns shape (S,); a
     grid point whose interpolated joints cannot be assembled counts as inf.
     """
-    t0 = knots.time_from_start[start]
-    length = knots.time_from_start[end] - t0
-    offset = length[:, np.newaxis] * fractions
-    coefficients = np.ascontiguousarray(_quintic_coefficients(knots, start, end))
+    times = knots.time_from_start
+    if planned is None:
+        table_times, table_position, table_velocity = samples.planned_table()
+        rows = _NO_ROWS
+    else:
+        t0 = times[start]
+        rows = np.ascontiguousarray(planned(
+            (t0[:, np.newaxis] + (times[end] - t0)[:, np.newaxis] * fractions).ravel()))
+        table_times, table_position, table_velocity = _NO_TABLE
     errors = np.empty(start.size)
-    _deviations(coefficients, offset, planned((t0[:, np.newaxis] + offset).ravel()),
+    _deviations(times, knots.positions, knots.velocities, knots.accelerations, start, end,
+                fractions, rows, table_times, table_position, table_velocity,
                 *_kernel_geometry(geometry)[:5], errors)
     return errors
 
 
-@kernel
-def _deviations(coefficients, offsets, planned, rx, ry, offset, upper, forearm_sq, errors):
-    """
-    Per segment, the largest distance of FK(quintic) at ``offsets`` (S, M) from ``planned``.
+# Empty stand-ins for _deviations' planned rows or table, whichever it does not read.
+_NO_ROWS = np.empty((0, 3))
+_NO_TABLE = (np.empty(0), np.empty((3, 0)), np.empty((3, 0)))
 
-    ``planned`` (S M, 3) is row-major over (segment, offset); an interpolated pose that
-    cannot be assembled counts as inf. ``errors`` (S,) receives the result.
+
+@kernel
+def _deviations(knot_times, positions, velocities, accelerations, start, end, fractions,
+                planned, table_times, table_position, table_velocity, rx, ry, offset, upper,
+                forearm_sq, errors):
     """
+    Per segment, the largest distance of FK(JTC's quintic) from the planned positions.
+
+    Segment s runs from knot ``start[s]`` to ``end[s]`` and is checked at ``fractions``
+    (M,) of its length. The planned positions are the rows of ``planned`` (S M, 3),
+    row-major over (segment, fraction), or, when it has none, the Hermite interpolation of
+    the table (:func:`_hermite_row`). An interpolated pose that cannot be assembled counts
+    as inf. ``errors`` (S,) receives the result.
+    """
+    c = np.empty((6, 3))
     reached = np.empty((1, 3))
-    segments, count = offsets.shape
-    for segment in range(segments):
+    expected = np.empty((1, 3))
+    count = fractions.size
+    from_table = planned.shape[0] == 0
+    for segment in range(start.size):
+        first, second = start[segment], end[segment]
+        t0 = knot_times[first]
+        length = knot_times[second] - t0
+        _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
+                      accelerations, first, second, c)
         worst = -np.inf
         for sample in range(count):
-            x = offsets[segment, sample]
-            c = coefficients[segment]
-            error = np.inf
-            if _forward_row(_quintic(c, 0, x), _quintic(c, 1, x), _quintic(c, 2, x), rx, ry,
-                            offset, upper, forearm_sq, reached, 0) == _ASSEMBLED:
+            x = length * fractions[sample]
+            if from_table:
+                _hermite_row(table_times, table_position, table_velocity, t0 + x, expected, 0)
+            else:
                 row = segment * count + sample
-                dx = reached[0, 0] - planned[row, 0]
-                dy = reached[0, 1] - planned[row, 1]
-                dz = reached[0, 2] - planned[row, 2]
+                for axis in range(3):
+                    expected[0, axis] = planned[row, axis]
+            error = np.inf
+            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
+                            _polynomial(c, 2, x, 0), rx, ry,
+                            offset, upper, forearm_sq, reached, 0) == _ASSEMBLED:
+                dx = reached[0, 0] - expected[0, 0]
+                dy = reached[0, 1] - expected[0, 1]
+                dz = reached[0, 2] - expected[0, 2]
                 error = math.sqrt(dx * dx + dy * dy + dz * dz)
                 if error != error:
                     error = np.inf
@@ -771,23 +820,11 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
-        values = self._peak_values
-        first = np.searchsorted(self.times, times[:-1], side='left')
-        last = np.searchsorted(self.times, times[1:], side='right')
-        # reduceat over [first, last) per interval; an interval without a sample of its own
-        # takes the sample at its start.
-        ends = np.maximum(last, first + 1)
-        bounds = np.ravel(np.column_stack((first, ends)))
-        return np.maximum.reduceat(np.vstack((values, values[-1:])), bounds, axis=0)[::2]
-
-    @functools.cached_property
-    def _peak_values(self):
-        """Per-sample TCP speed, acceleration, jerk norms, largest |q_dot|, |q_ddot|, (N, 5)."""
-        # Built once: every knot round asks for the peaks of new intervals of the same samples.
-        return np.column_stack([np.sqrt(np.einsum('ij,ij->i', vector, vector)) for vector in
-                                (self.velocity, self.acceleration, self.jerk)]
-                               + [largest_magnitude_per_row(self.qdot),
-                                  largest_magnitude_per_row(self.qddot)])
+        peaks = np.empty((times.size - 1, len(EXECUTED_KEYS)))
+        _interval_peaks(self.times, *(np.ascontiguousarray(values) for values in (
+            self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
+            np.ascontiguousarray(times, dtype=float), peaks)
+        return peaks
 
     def states(self, times, low=None, high=None):
         """
@@ -838,43 +875,79 @@ class MotionSamples:
         for samples h apart, about 1e-10 m at 0.1 ms, a millionth of the
         tolerances it serves (``_PLANNED_TABLE_MIN_TOLERANCE`` and up).
         """
+        table_times, position, velocity = self.planned_table()
+        rows = np.empty((times.size, 3))
+        _hermite_rows(table_times, position, velocity, np.ascontiguousarray(times), rows)
+        return rows
+
+    def planned_table(self):
+        """Return the table :meth:`planned` interpolates: times (K,), positions, velocities."""
         if self._planned is None:
             # Of two samples at the same time (both sides of a step), the later one. Stored as
             # coordinate rows (3, K): the products with the per-point basis (N,) then run
             # along the points, not across 3 coordinates.
             keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
             keep[0] = True
-            self._planned = (self.times[keep], np.ascontiguousarray(self.position[keep].T),
+            self._planned = (np.ascontiguousarray(self.times[keep]),
+                             np.ascontiguousarray(self.position[keep].T),
                              np.ascontiguousarray(self.velocity[keep].T))
-        table_times, position, velocity = self._planned
-        rows = np.empty((times.size, 3))
-        _hermite_rows(table_times, position, velocity, np.ascontiguousarray(times), rows)
-        return rows
+        return self._planned
+
+
+@kernel
+def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, times, peaks):
+    """
+    Fill ``peaks`` (K - 1, 5) with :meth:`MotionSamples.segment_peaks` on ``times`` (K,).
+
+    Interval i takes the samples from the first at or after ``times[i]`` to the last at or
+    before ``times[i + 1]``, at least one (the one at its start, the last if none follows).
+    """
+    count = sample_times.size
+    for interval in range(times.size - 1):
+        first = np.searchsorted(sample_times, times[interval])
+        end = max(np.searchsorted(sample_times, times[interval + 1], side='right'), first + 1)
+        for key in range(5):
+            peaks[interval, key] = 0.0
+        for sample in range(first, end):
+            row = min(sample, count - 1)
+            for key, vector in enumerate((velocity, acceleration, jerk)):
+                norm = math.sqrt(vector[row, 0] * vector[row, 0] + vector[row, 1] * vector[row, 1]
+                                 + vector[row, 2] * vector[row, 2])
+                peaks[interval, key] = max(peaks[interval, key], norm)
+            peaks[interval, 3] = max(peaks[interval, 3], abs(qdot[row, 0]), abs(qdot[row, 1]),
+                                     abs(qdot[row, 2]))
+            peaks[interval, 4] = max(peaks[interval, 4], abs(qddot[row, 0]), abs(qddot[row, 1]),
+                                     abs(qddot[row, 2]))
 
 
 @kernel
 def _hermite_rows(table_times, position, velocity, times, rows):
+    """Fill ``rows`` (N, 3) with :func:`_hermite_row` at each of ``times`` (N,)."""
+    for row in range(times.size):
+        _hermite_row(table_times, position, velocity, times[row], rows, row)
+
+
+@kernel
+def _hermite_row(table_times, position, velocity, time, rows, row):
     """
-    Fill ``rows`` (N, 3) with the cubic Hermite interpolation of the table at ``times``.
+    Write the cubic Hermite interpolation of the table at ``time`` into ``rows[row]``.
 
     ``position`` and ``velocity`` are coordinate rows (3, K) at ``table_times`` (K,);
     the interval is the last one starting at or before t (the first or last beyond).
     """
     final = table_times.size - 2
-    for row in range(times.size):
-        time = times[row]
-        step = min(max(np.searchsorted(table_times, time, side='right') - 1, 0), final)
-        after = step + 1
-        start = table_times[step]
-        width = table_times[after] - start
-        x = (time - start) / width
-        x2, x3 = x * x, x * x * x
-        # Cubic Hermite basis on [0, 1]; the velocities scale with the width.
-        for axis in range(3):
-            rows[row, axis] = ((2.0 * x3 - 3.0 * x2 + 1.0) * position[axis, step]
-                               + (x3 - 2.0 * x2 + x) * width * velocity[axis, step]
-                               + (3.0 * x2 - 2.0 * x3) * position[axis, after]
-                               + (x3 - x2) * width * velocity[axis, after])
+    step = min(max(np.searchsorted(table_times, time, side='right') - 1, 0), final)
+    after = step + 1
+    start = table_times[step]
+    width = table_times[after] - start
+    x = (time - start) / width
+    x2, x3 = x * x, x * x * x
+    # Cubic Hermite basis on [0, 1]; the velocities scale with the width.
+    for axis in range(3):
+        rows[row, axis] = ((2.0 * x3 - 3.0 * x2 + 1.0) * position[axis, step]
+                           + (x3 - 2.0 * x2 + x) * width * velocity[axis, step]
+                           + (3.0 * x2 - 2.0 * x3) * position[axis, after]
+                           + (x3 - x2) * width * velocity[axis, after])
 
 
 def _nearest_sample(sorted_times, targets):
@@ -949,14 +1022,12 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     fractions = np.arange(1, check_count + 1) / (check_count + 1.0)
 
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
-    if accept >= _PLANNED_TABLE_MIN_TOLERANCE:
-        planned = samples.planned
-    else:
-        def planned(times):
-            return _checked_state_at(motion, times)[0]
+    # Below the table's resolution the motion itself is evaluated at every check point.
+    planned = None if accept >= _PLANNED_TABLE_MIN_TOLERANCE else functools.partial(
+        _planned_positions, motion)
 
     def errors_of(knots, start, end):
-        return _segment_errors(planned, geometry, knots, start, end, fractions)
+        return _segment_errors(samples, planned, geometry, knots, start, end, fractions)
 
     knots = _Knots(*samples.states(*_with_cells(
         np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1))))
@@ -993,6 +1064,11 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     data = JointTrajectoryData(names, knots.time_from_start, knots.positions,
                                knots.velocities, knots.accelerations)
     return data, float(errors.max())
+
+
+def _planned_positions(motion, times):
+    """Return the planned TCP positions of ``motion`` at ``times`` (N,), (N, 3)."""
+    return _checked_state_at(motion, times)[0]
 
 
 def _segment_count(times, errors, accept):
@@ -1105,33 +1181,79 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
         Naming the joint, the quantity, the bound, the value and its time.
 
     """
-    times = traj.time_from_start
-    positions, velocities, accelerations = (traj.positions, traj.velocities,
-                                            traj.accelerations)
     extra = int(require_range('samples_per_segment', samples_per_segment, 0.0))
-    if extra > 0 and times.size > 1:
-        fractions = np.arange(extra + 1) / (extra + 1.0)
-        grid = (times[:-1, np.newaxis] + np.diff(times)[:, np.newaxis] * fractions).ravel()
-        times = np.append(grid, times[-1])
-        positions, velocities, accelerations = quintic_interpolate(traj, times)
     low, high = geometry.joint_min, geometry.joint_max
     vmax, amax = joint_limits.max_velocity, joint_limits.max_acceleration
-    broken = np.stack([(positions < low) | (positions > high),
-                       np.abs(velocities) > vmax,
-                       np.abs(accelerations) > amax], axis=1)  # (K, quantity, joint)
-    if not broken.any():
+    found = np.empty(2)
+    quantity, joint = _joint_limit_rows(
+        traj.time_from_start, traj.positions, traj.velocities, traj.accelerations, extra, low,
+        high, vmax, amax, found)
+    if quantity < 0:
         return
-    sample, quantity, joint = np.unravel_index(int(np.argmax(broken.ravel())), broken.shape)
     name = traj.joint_names[joint]
-    when = f'at t={times[sample]:.6g} s'
+    when = f'at t={found[0]:.6g} s'
     if quantity == 0:
         raise LimitError(f'{name} position: expected a value in [{low:g}, {high:g}] rad, got '
-                         f'{positions[sample, joint]:.6g} {when}')
+                         f'{found[1]:.6g} {when}')
     if quantity == 1:
         raise LimitError(f'{name} velocity: expected |q\u0307| \u2264 {vmax:g} rad/s, got '
-                         f'{velocities[sample, joint]:.6g} {when}')
+                         f'{found[1]:.6g} {when}')
     raise LimitError(f'{name} acceleration: expected |q\u0308| \u2264 {amax:g} rad/s^2, got '
-                     f'{accelerations[sample, joint]:.6g} {when}')
+                     f'{found[1]:.6g} {when}')
+
+
+@kernel
+def _joint_limit_rows(times, positions, velocities, accelerations, extra, low, high, vmax,
+                      amax, found):
+    """
+    Return (quantity, joint) of the first joint-limit violation of :func:`check_joint_limits`.
+
+    With ``extra`` > 0 JTC's quintic of every segment is checked at its start and ``extra``
+    interior points, evenly spaced, then the last point; else the points. Quantity 0 is the
+    position, 1 the velocity, 2 the acceleration, -1 none; ``found`` receives its time and
+    value.
+    """
+    c = np.empty((6, 3))
+    state = np.empty((3, 3))
+    count = times.size
+    interpolated = extra > 0 and count > 1
+    for segment in range(count - 1 if interpolated else 0):
+        length = times[segment + 1] - times[segment]
+        _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
+                      accelerations, segment, segment + 1, c)
+        for sample in range(extra + 1):
+            x = length * (sample / (extra + 1.0))
+            for derivative in range(3):
+                for j in range(3):
+                    state[derivative, j] = _polynomial(c, j, x, derivative)
+            quantity, joint = _limit_broken(state, low, high, vmax, amax)
+            if quantity >= 0:
+                found[0], found[1] = times[segment] + x, state[quantity, joint]
+                return quantity, joint
+    for point in range(count - 1 if interpolated else 0, count):
+        for j in range(3):
+            state[0, j], state[1, j] = positions[point, j], velocities[point, j]
+            state[2, j] = accelerations[point, j]
+        quantity, joint = _limit_broken(state, low, high, vmax, amax)
+        if quantity >= 0:
+            found[0], found[1] = times[point], state[quantity, joint]
+            return quantity, joint
+    return -1, 0
+
+
+@kernel
+def _limit_broken(state, low, high, vmax, amax):
+    """Return (quantity, joint) of the first limit ``state`` (q; q_dot; q_ddot) breaks."""
+    for j in range(3):
+        if state[0, j] < low or state[0, j] > high:
+            return 0, j
+    for j in range(3):
+        if abs(state[1, j]) > vmax:
+            return 1, j
+    for j in range(3):
+        if abs(state[2, j]) > amax:
+            return 2, j
+    return -1, 0
 
 
 def segment_polynomials(traj):
@@ -1214,86 +1336,93 @@ def executed_table(trajectory, geometry, previous=None):
     return table
 
 
-def _executed_values(coefficients, offsets, geometry):
-    """Return TCP speed, acceleration, jerk and largest |q_dot|, |q_ddot| at (S, M), (S, M, 5)."""
-    coefficients = np.ascontiguousarray(coefficients)
-    offsets = np.ascontiguousarray(offsets)
-    values = np.empty(offsets.shape + (len(EXECUTED_KEYS),))
-    if _executed_rows(coefficients, offsets, *_kernel_geometry(geometry), values) >= 0:
-        # The error of the first pose that cannot be assembled, named as before.
-        q, qdot, qddot, qdddot = evaluate_segments(coefficients, offsets)
-        tcp_derivatives(q.reshape(-1, 3), qdot.reshape(-1, 3), qddot.reshape(-1, 3),
-                        qdddot.reshape(-1, 3), geometry, name='interpolated q')
-    return values
-
-
-@kernel
-def _quintic(c, j, x):
-    """Return joint j's polynomial ``c`` (6, 3) at ``x``, in :func:`_horner`'s order."""
-    return ((((c[5, j] * x + c[4, j]) * x + c[3, j]) * x + c[2, j]) * x + c[1, j]) * x + c[0, j]
-
-
-@kernel
-def _executed_rows(coefficients, offsets, rx, ry, offset, upper, forearm_sq, coplanar,
-                   values):
-    """
-    Fill ``values`` (S, M, 5) as :func:`_executed_values`; return the first failed row or -1.
-
-    The quintic and its derivatives are :func:`_horner`'s, the TCP derivatives
-    :func:`~ellipath_ros.core.kinematics.tcp_derivatives`' and the norms sum the squares
-    as ``einsum`` does on AVX2 ((x^2 + z^2) + y^2), all in the same order, so the values
-    equal the vectorised ones bit for bit.
-    """
-    segments, count = offsets.shape
-    rows = segments * count
-    joints = np.empty((4, rows, 3))
-    for segment in range(segments):
-        c = coefficients[segment]
-        for sample in range(count):
-            x = offsets[segment, sample]
-            row = segment * count + sample
-            for j in range(3):
-                joints[0, row, j] = _quintic(c, j, x)
-                joints[1, row, j] = ((((5.0 * c[5, j] * x + 4.0 * c[4, j]) * x
-                                       + 3.0 * c[3, j]) * x + 2.0 * c[2, j]) * x + c[1, j])
-                joints[2, row, j] = (((20.0 * c[5, j] * x + 12.0 * c[4, j]) * x
-                                      + 6.0 * c[3, j]) * x + 2.0 * c[2, j])
-                joints[3, row, j] = (60.0 * c[5, j] * x + 24.0 * c[4, j]) * x + 6.0 * c[3, j]
-    tcp = np.empty((4, rows, 3))
-    scratch = (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
-               np.empty((3, 3)), np.empty(3), np.empty(3))
-    failed = -1
-    for row in range(rows):
-        state = _tcp_row(joints[0], joints[1], joints[2], joints[3], row, rx, ry, offset, upper,
-                         forearm_sq, coplanar, tcp[0], tcp[1], tcp[2], tcp[3], scratch)
-        if state != _ASSEMBLED and failed < 0:
-            failed = row
-        segment, sample = row // count, row % count
-        for key in range(3):
-            x, y, z = tcp[key + 1, row, 0], tcp[key + 1, row, 1], tcp[key + 1, row, 2]
-            values[segment, sample, key] = math.sqrt((x * x + z * z) + y * y)
-        for key in range(2):
-            rates = joints[key + 1]
-            values[segment, sample, 3 + key] = max(abs(rates[row, 0]), abs(rates[row, 1]),
-                                                   abs(rates[row, 2]))
-    return failed
-
-
 def _segment_peaks(coefficients, lengths, geometry, samples):
     """Return, per segment, the refined sampled peaks in the order of ``EXECUTED_KEYS``."""
-    count = lengths.size
-    offsets = lengths[:, np.newaxis] * np.linspace(0.0, 1.0, samples + 1)
-    values = _executed_values(coefficients, offsets, geometry)  # (S, M, 5)
-    peaks = values.max(axis=1)
-    # Parabola through the largest sample and its neighbours (the middle one of three at a
-    # segment end): its vertex is where the peak between samples lies.
-    centre = np.clip(values.argmax(axis=1), 1, samples - 1)  # (S, 5)
-    rows = np.arange(count)[:, np.newaxis]
-    keys = np.arange(len(EXECUTED_KEYS))
-    before, middle, after = (values[rows, centre + shift, keys] for shift in (-1, 0, 1))
-    curvature = before - 2.0 * middle + after
-    with np.errstate(divide='ignore', invalid='ignore'):
-        shift = np.where(curvature < 0.0, 0.5 * (before - after) / curvature, 0.0)
-    vertex = np.clip(centre + shift, 0.0, samples) * (lengths[:, np.newaxis] / samples)
-    at_vertex = _executed_values(coefficients, vertex, geometry)  # (S, 5 offsets, 5)
-    return np.maximum(peaks, at_vertex[:, keys, keys])
+    coefficients = np.ascontiguousarray(coefficients)
+    lengths = np.ascontiguousarray(lengths)
+    table = np.empty((lengths.size, len(EXECUTED_KEYS)))
+    failed_offset = np.empty(1)
+    failed = _peak_rows(coefficients, lengths, samples, *_kernel_geometry(geometry), table,
+                        failed_offset)
+    if failed >= 0:
+        # The error of the first pose that cannot be assembled, named as before.
+        q, qdot, qddot, qdddot = evaluate_segments(coefficients[failed:failed + 1],
+                                                   failed_offset.reshape(1, 1))
+        tcp_derivatives(q.reshape(-1, 3), qdot.reshape(-1, 3), qddot.reshape(-1, 3),
+                        qdddot.reshape(-1, 3), geometry, name='interpolated q')
+    return table
+
+
+@kernel
+def _peak_rows(coefficients, lengths, samples, rx, ry, offset, upper, forearm_sq, coplanar,
+               table, failed_offset):
+    """
+    Fill ``table`` (S, 5) with each segment's executed peaks; return the first failed one.
+
+    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) is evaluated at
+    ``samples`` + 1 evenly spaced offsets, ends included (:func:`_executed_point`); each
+    quantity's largest sample is refined by the parabola through it and its neighbours
+    (the middle one of three at a segment end), evaluated at its vertex: a peak between
+    samples is found, not only the samples. A pose that cannot be assembled (or is
+    coplanar) stops the pass: its segment is returned, its offset in ``failed_offset[0]``;
+    -1 when all are assembled.
+    """
+    work = (np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)),
+            np.empty((4, 1, 3)),
+            (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
+             np.empty((3, 3)), np.empty(3), np.empty(3)))
+    values = np.empty((samples + 1, 5))
+    point = np.empty(5)
+    for segment in range(lengths.size):
+        c = coefficients[segment]
+        step = lengths[segment] / samples
+        for sample in range(samples + 1):
+            x = lengths[segment] * (sample / samples)
+            if _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work,
+                               values[sample]) != _ASSEMBLED:
+                failed_offset[0] = x
+                return segment
+        for key in range(5):
+            largest = 0
+            for sample in range(1, samples + 1):
+                if values[sample, key] > values[largest, key]:
+                    largest = sample
+            peak = values[largest, key]
+            centre = min(max(largest, 1), samples - 1)
+            before, middle, after = (values[centre - 1, key], values[centre, key],
+                                     values[centre + 1, key])
+            curvature = before - 2.0 * middle + after
+            shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
+            vertex = min(max(centre + shift, 0.0), float(samples)) * step
+            if _executed_point(c, vertex, rx, ry, offset, upper, forearm_sq, coplanar, work,
+                               point) != _ASSEMBLED:
+                failed_offset[0] = vertex
+                return segment
+            table[segment, key] = max(peak, point[key])
+    return -1
+
+
+@kernel
+def _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work, out):
+    """
+    Write JTC's executed values of quintic ``c`` (6, 3) at ``x`` into ``out`` (5,).
+
+    TCP speed, acceleration and jerk norms (:func:`_tcp_row` on the quintic's joint
+    position and derivatives), then the largest |q_dot| and |q_ddot|; returns the
+    pose's status. ``work``: joint rows q, q_dot, q_ddot, q_dddot (1, 3), TCP rows
+    (4, 1, 3) and :func:`_tcp_row`'s scratch.
+    """
+    q, qdot, qddot, qdddot, tcp, scratch = work
+    for j in range(3):
+        q[0, j] = _polynomial(c, j, x, 0)
+        qdot[0, j] = _polynomial(c, j, x, 1)
+        qddot[0, j] = _polynomial(c, j, x, 2)
+        qdddot[0, j] = _polynomial(c, j, x, 3)
+    state = _tcp_row(q, qdot, qddot, qdddot, 0, rx, ry, offset, upper, forearm_sq, coplanar,
+                     tcp[0], tcp[1], tcp[2], tcp[3], scratch)
+    for key in range(3):
+        x_, y_, z_ = tcp[key + 1, 0, 0], tcp[key + 1, 0, 1], tcp[key + 1, 0, 2]
+        out[key] = math.sqrt(x_ * x_ + y_ * y_ + z_ * z_)
+    out[3] = max(abs(qdot[0, 0]), abs(qdot[0, 1]), abs(qdot[0, 2]))
+    out[4] = max(abs(qddot[0, 0]), abs(qddot[0, 1]), abs(qddot[0, 2]))
+    return state

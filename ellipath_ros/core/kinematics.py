@@ -173,65 +173,6 @@ def _same_shape(name, array, reference, reference_name):
                                 f'{reference_name}, got shape {array.shape}')
 
 
-def _solve_ik(points, geometry):
-    """
-    Elbow-out IK of every arm; also return the discriminant and the arm-plane coordinates.
-
-    The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
-    tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
-    ``E cos q + F sin q + G = 0`` with ``E = -2 L1 u``, ``F = 2 L1 z`` and
-    ``G = u^2 + w^2 + z^2 + L1^2 - L2^2``. The half-angle substitution turns it into the
-    classic quadratic ``(G - E) tau^2 + 2 F tau + (G + E) = 0`` in ``tau = tan(q / 2)``, whose
-    discriminant is ``D = E^2 + F^2 - G^2``. Its two roots are written here in the equivalent
-    atan2 form ``q = -atan2(z, u) -+ atan2(sqrt(D), G)``, which needs no division by
-    ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
-    from the actuator axis to the effector joint).
-    """
-    # C_i - A_i = p + (r - R) e_i; its radial and tangential coordinates, per arm (N, 3).
-    x, y = points[:, 0:1], points[:, 1:2]
-    u = x * _RADIAL[:, 0] + y * _RADIAL[:, 1] + (geometry.effector_radius
-                                                 - geometry.base_radius)
-    w = x * _TANGENT[:, 0] + y * _TANGENT[:, 1]
-    z = np.broadcast_to(points[:, 2:3], u.shape)
-    upper, fore = geometry.upper_arm, geometry.forearm
-    g = u * u + w * w + z * z + upper * upper - fore * fore
-    discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
-    q = -np.arctan2(z, u) - np.arctan2(np.sqrt(np.maximum(discriminant, 0.0)), g)
-    return q, discriminant, u, w
-
-
-def _ik_failure(points, geometry, q, discriminant, u, w, name):
-    """Return the error for the first sample IK cannot serve, or None."""
-    above = points[:, 2] >= 0.0
-    # Whole-array tests first (cheap); the rows are found only for an error.
-    if not (above.any() or discriminant.min() < 0.0 or q.min() < geometry.joint_min
-            or q.max() > geometry.joint_max):
-        return None
-    outside = (discriminant < 0.0).any(axis=1)
-    beyond = ((q < geometry.joint_min) | (q > geometry.joint_max)).any(axis=1)
-    bad = above | outside | beyond
-    if not bad.any():
-        return None
-    index = int(np.argmax(bad))
-    where = (f'{name}[{index}]: expected a point reachable by the robot, '
-             f'got {_fmt(points[index])} m')
-    if above[index]:
-        return _unreachable(f'{where}, above the base plane (z must be < 0)', index)
-    if outside[index]:
-        arm = int(np.argmax(discriminant[index] < 0.0))
-        reach = math.hypot(u[index, arm], points[index, 2])
-        fore_sq = geometry.forearm ** 2 - w[index, arm] ** 2
-        fore = math.sqrt(fore_sq) if fore_sq > 0.0 else 0.0
-        side = 'far from' if reach > geometry.upper_arm + fore else 'close to'
-        return _unreachable(
-            f'{where}, outside the sphere of arm {arm}: too {side} its actuator axis for '
-            f'upper arm {geometry.upper_arm:g} m and forearm {geometry.forearm:g} m', index)
-    arm = int(np.argmax((q[index] < geometry.joint_min) | (q[index] > geometry.joint_max)))
-    return _unreachable(
-        f'{where}, joint limit: arm {arm} needs q={q[index, arm]:.6g} rad, outside '
-        f'[{geometry.joint_min:g}, {geometry.joint_max:g}] rad', index)
-
-
 def inverse_kinematics(points, geometry, *, name='points'):
     """
     Joint angles that put the TCP at the given points (closed form, elbow-out branch).
@@ -260,11 +201,21 @@ def inverse_kinematics(points, geometry, *, name='points'):
 
     """
     array, single = _as_rows(name, points)
-    q, discriminant, u, w = _solve_ik(array, geometry)
-    failure = _ik_failure(array, geometry, q, discriminant, u, w, name)
-    if failure is not None:
-        raise failure
+    q, status, arms = _ik(array, geometry)
+    if status.any():
+        row = int(np.argmax(status != _IK_OK))
+        raise _joint_failure(array, row, int(status[row]), int(arms[row]), q[row, arms[row]],
+                             geometry, name)
     return q[0] if single else q
+
+
+def _ik(points, geometry):
+    """Return :func:`_ik_rows`' joint angles, status and failing arm of every row."""
+    q = np.empty(points.shape)
+    status = np.empty(points.shape[0], dtype=np.int8)
+    arms = np.empty(points.shape[0], dtype=np.int8)
+    _ik_rows(np.ascontiguousarray(points), *_joint_geometry(geometry)[:9], q, status, arms)
+    return q, status, arms
 
 
 def reachable(points, geometry):
@@ -292,12 +243,8 @@ def reachable(points, geometry):
     if array.ndim != 2 or array.shape[1] != 3:
         raise InvalidInputError(
             f'points: expected an array of shape (N, 3) or (3,), got shape {array.shape}')
-    finite = np.isfinite(array).all(axis=1)
-    safe = np.where(finite[:, np.newaxis], array, -1.0)
-    with np.errstate(invalid='ignore'):
-        q, discriminant, _, _ = _solve_ik(safe, geometry)
-    ok = (finite & (safe[:, 2] < 0.0) & (discriminant >= 0.0).all(axis=1)
-          & ((q >= geometry.joint_min) & (q <= geometry.joint_max)).all(axis=1))
+    # A non-finite row fails in the kernel: NaN compares false with every bound.
+    ok = _ik(array, geometry)[1] == _IK_OK
     return ok[0] if single else ok
 
 
@@ -389,26 +336,6 @@ def _raise_unassembled(q, status, name):
                        f'got {_fmt(q[index])} rad: {why}', index)
 
 
-def _arm_vectors(points, q, geometry):
-    """
-    Forearm vectors and elbow derivatives per coordinate: three tuples (x, y, z) of (N, 3).
-
-    Returns ``s_i = C_i - B_i``, ``b_i = dB_i/dq_i`` and ``c_i = d^2B_i/dq_i^2``, each
-    coordinate an array of shape (N, 3) (sample, arm). The arms have fixed azimuths, so
-    written per coordinate no (N, 3, 3) temporaries are needed.
-    """
-    cos_q, sin_q = np.cos(q), np.sin(q)
-    upper = geometry.upper_arm
-    ex, ey = _RADIAL[:, 0], _RADIAL[:, 1]
-    reach = geometry.effector_radius - geometry.base_radius - upper * cos_q
-    upper_sin, upper_cos = upper * sin_q, upper * cos_q
-    forearm = (points[:, 0:1] + reach * ex, points[:, 1:2] + reach * ey,
-               points[:, 2:3] + upper_sin)
-    d_elbow = (-upper_sin * ex, -upper_sin * ey, -upper_cos)
-    dd_elbow = (-upper_cos * ex, -upper_cos * ey, upper_sin)
-    return forearm, d_elbow, dd_elbow
-
-
 def largest_magnitude_per_row(values):
     """
     Return max(|values[n, 0]|, |values[n, 1]|, |values[n, 2]|) per row n of (N, 3), (N,).
@@ -418,33 +345,6 @@ def largest_magnitude_per_row(values):
     """
     magnitude = np.abs(values)
     return np.maximum(np.maximum(magnitude[:, 0], magnitude[:, 1]), magnitude[:, 2])
-
-
-def _dot(first, second):
-    """Per-arm dot product of two vectors given per coordinate, (N, 3)."""
-    return first[0] * second[0] + first[1] * second[1] + first[2] * second[2]
-
-
-def _dot_point(first, vectors):
-    """Per-arm dot product of per-coordinate arm vectors with TCP vectors (N, 3), (N, 3)."""
-    return (first[0] * vectors[:, 0:1] + first[1] * vectors[:, 1:2]
-            + first[2] * vectors[:, 2:3])
-
-
-def _ik_diagonal(forearm, d_elbow, geometry, name):
-    """Return ``s_i . b_i`` (N, 3), raising at the first IK singularity."""
-    diagonal = _dot(forearm, d_elbow)
-    scale = geometry.upper_arm * geometry.forearm
-    near_zero = np.abs(diagonal) < _SINGULARITY_TOLERANCE * scale
-    if near_zero.any():
-        singular = near_zero.any(axis=1)
-        index = int(np.argmax(singular))
-        arm = int(np.argmin(np.abs(diagonal[index])))
-        raise _unreachable(
-            f'{name}[{index}]: expected a point away from singularities, got a pose where '
-            f'forearm {arm} is perpendicular to its elbow path (|s.b|/(L1 L2) = '
-            f'{abs(diagonal[index, arm]) / scale:.3g}): the joint rates are unbounded', index)
-    return diagonal
 
 
 def _check_inputs(points, q, extras, names):
@@ -493,9 +393,7 @@ def joint_velocities(points, q, velocities, geometry, *, name='points'):
     """
     points, q, (velocities,), single = _check_inputs(
         points, q, (velocities,), (name, 'q', 'velocities'))
-    forearm, d_elbow, _ = _arm_vectors(points, q, geometry)
-    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
-    qdot = _velocity_rates(forearm, diagonal, velocities)
+    qdot, _ = _rates(points, q, velocities, np.zeros(points.shape), None, geometry, name)
     return qdot[0] if single else qdot
 
 
@@ -540,11 +438,26 @@ def joint_accelerations(points, q, velocities, accelerations, qdot, geometry, *,
     points, q, (velocities, accelerations, qdot), single = _check_inputs(
         points, q, (velocities, accelerations, qdot),
         (name, 'q', 'velocities', 'accelerations', 'qdot'))
-    forearm, d_elbow, dd_elbow = _arm_vectors(points, q, geometry)
-    diagonal = _ik_diagonal(forearm, d_elbow, geometry, name)
-    qddot = _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities,
-                                accelerations, qdot)
+    _, qddot = _rates(points, q, velocities, accelerations, qdot, geometry, name)
     return qddot[0] if single else qddot
+
+
+def _rates(points, q, velocities, accelerations, qdot, geometry, name):
+    """
+    Return (q_dot, q_ddot) of :func:`_rate_row` for every row, raising at a singularity.
+
+    ``qdot`` given (N, 3): the accelerations are computed with it, and it is returned.
+    """
+    given = qdot is not None
+    rates = np.array(qdot, dtype=float) if given else np.empty(points.shape)
+    qddot = np.empty(points.shape)
+    geometry_args = _joint_geometry(geometry)
+    row, arm, diagonal = _rate_rows(
+        *(np.ascontiguousarray(value) for value in (points, velocities, accelerations, q)),
+        *geometry_args[:2], *geometry_args[4:6], geometry_args[9], rates, qddot, given)
+    if row >= 0:
+        raise _joint_failure(points, row, _IK_SINGULAR, arm, diagonal, geometry, name)
+    return rates, qddot
 
 
 def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
@@ -585,11 +498,11 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
         converted.append(array)
     velocities, accelerations = converted
     q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
-    failed = _joint_rows(
+    row, status, arm, value = _joint_rows(
         np.ascontiguousarray(points), np.ascontiguousarray(velocities),
         np.ascontiguousarray(accelerations), *_joint_geometry(geometry), q, qdot, qddot)
-    if failed >= 0:
-        _raise_joint_failure(points, geometry, name)
+    if row >= 0:
+        raise _joint_failure(points, row, status, arm, value, geometry, name)
     if single:
         return q[0], qdot[0], qddot[0]
     return q, qdot, qddot
@@ -606,7 +519,7 @@ def assembled_joint_rates(points, velocities, geometry):
     q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
     failed = _joint_rows(
         points, np.ascontiguousarray(velocities, dtype=float), np.zeros(points.shape),
-        *_joint_geometry(geometry), q, qdot, qddot)
+        *_joint_geometry(geometry), q, qdot, qddot)[0]
     return None if failed >= 0 else (q, qdot)
 
 
@@ -618,29 +531,38 @@ def _joint_geometry(geometry):
             _SINGULARITY_TOLERANCE * (geometry.upper_arm * geometry.forearm))
 
 
-def _raise_joint_failure(points, geometry, name):
-    """Raise the error of :func:`joint_motion` for ``points`` (one of them has failed)."""
-    q, discriminant, u, w = _solve_ik(points, geometry)
-    failure = _ik_failure(points, geometry, q, discriminant, u, w, name)
-    if failure is not None:
-        raise failure
-    forearm, d_elbow, _ = _arm_vectors(points, q, geometry)
-    _ik_diagonal(forearm, d_elbow, geometry, name)
+def _joint_failure(points, row, status, arm, value, geometry, name):
+    """
+    Return the error naming row ``row`` of ``points`` that inverse kinematics cannot serve.
 
-
-def _velocity_rates(forearm, diagonal, velocities):
-    """Return q_dot = (s_i . p_dot) / (s_i . b_i), (N, 3)."""
-    return _dot_point(forearm, velocities) / diagonal
-
-
-def _acceleration_rates(forearm, d_elbow, dd_elbow, diagonal, velocities, accelerations,
-                        qdot):
-    """Return q_ddot; see :func:`joint_accelerations`."""
-    forearm_rate = tuple(velocities[:, axis:axis + 1] - d_elbow[axis] * qdot
-                         for axis in range(3))
-    numerator = (_dot_point(forearm, accelerations) + _dot(forearm_rate, forearm_rate)
-                 - _dot(forearm, dd_elbow) * qdot * qdot)
-    return numerator / diagonal
+    The one naming of the kernels' failures (:func:`_ik_row`, :func:`_rate_row`): ``status``
+    is their code, ``arm`` the arm that fails and ``value`` its joint angle (``_IK_LIMIT``)
+    or ``s_i . b_i`` (``_IK_SINGULAR``).
+    """
+    point = points[row]
+    where = f'{name}[{row}]: expected a point reachable by the robot, got {_fmt(point)} m'
+    if status == _IK_ABOVE:
+        return _unreachable(f'{where}, above the base plane (z must be < 0)', row)
+    if status == _IK_OUTSIDE:
+        radial = (point[0] * _RADIAL_X[arm] + point[1] * _RADIAL_Y[arm]
+                  + geometry.effector_radius - geometry.base_radius)
+        tangential = point[0] * _TANGENT_X[arm] + point[1] * _TANGENT_Y[arm]
+        reach = math.hypot(radial, point[2])
+        fore_sq = geometry.forearm ** 2 - tangential ** 2
+        fore = math.sqrt(fore_sq) if fore_sq > 0.0 else 0.0
+        side = 'far from' if reach > geometry.upper_arm + fore else 'close to'
+        return _unreachable(
+            f'{where}, outside the sphere of arm {arm}: too {side} its actuator axis for '
+            f'upper arm {geometry.upper_arm:g} m and forearm {geometry.forearm:g} m', row)
+    if status == _IK_LIMIT:
+        return _unreachable(
+            f'{where}, joint limit: arm {arm} needs q={value:.6g} rad, outside '
+            f'[{geometry.joint_min:g}, {geometry.joint_max:g}] rad', row)
+    scale = geometry.upper_arm * geometry.forearm
+    return _unreachable(
+        f'{name}[{row}]: expected a point away from singularities, got a pose where '
+        f'forearm {arm} is perpendicular to its elbow path (|s.b|/(L1 L2) = '
+        f'{abs(value) / scale:.3g}): the joint rates are unbounded', row)
 
 
 def tcp_derivatives(q, qdot, qddot, qdddot, geometry, *, name='q', strict=True):
@@ -833,7 +755,7 @@ def _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq, cop
                       + rate[2, arm] * accel[2])
         s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
         s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot ** 3.0) + 3.0 * s_c * w_dot * w_ddot
+        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot * w_dot * w_dot) + 3.0 * s_c * w_dot * w_ddot
                     - 3.0 * rate_accel)
     _solve(columns, rhs, inverse_det, jerk, row)
     return state
@@ -847,51 +769,154 @@ def _solve(columns, rhs, inverse_det, out, row):
                           + rhs[2] * columns[2, axis]) * inverse_det
 
 
+# Status codes of inverse kinematics of a row (:func:`_ik_row`, :func:`_rate_row`), in the
+# order the errors are reported.
+_IK_OK, _IK_ABOVE, _IK_OUTSIDE, _IK_LIMIT, _IK_SINGULAR = range(5)
+
+
+@kernel
+def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q,
+            trig):
+    """
+    Elbow-out IK of ``points[row]`` into ``q[row]``; return (status, failing arm).
+
+    ``trig`` (2, 3) receives cos q and sin q of every arm, from the same quantities without
+    a trigonometric call: with ``rho^2 = u^2 + z^2`` and ``sqrt(D^2 + G^2) = 2 L1 rho``,
+    ``cos q = (u G - z sqrt(D)) / (2 L1 rho^2)`` and
+    ``sin q = -(z G + u sqrt(D)) / (2 L1 rho^2)``.
+
+    The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
+    tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
+    ``E cos q + F sin q + G = 0`` with ``E = -2 L1 u``, ``F = 2 L1 z`` and
+    ``G = u^2 + w^2 + z^2 + L1^2 - L2^2``. The half-angle substitution turns it into the
+    classic quadratic ``(G - E) tau^2 + 2 F tau + (G + E) = 0`` in ``tau = tan(q / 2)``, whose
+    discriminant is ``D = E^2 + F^2 - G^2``. Its two roots are written here in the equivalent
+    atan2 form ``q = -atan2(z, u) -+ atan2(sqrt(D), G)``, which needs no division by
+    ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
+    from the actuator axis to the effector joint). Checked in the order the errors are
+    named: above the base (or not finite), outside an arm's sphere, beyond a joint limit.
+    """
+    x, y, z = points[row, 0], points[row, 1], points[row, 2]
+    if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
+        return _IK_ABOVE, 0
+    fore_sq = forearm * forearm
+    upper_sq = upper * upper
+    for arm in range(3):
+        u = x * rx[arm] + y * ry[arm] + -offset
+        w = x * tx[arm] + y * ty[arm]
+        g = u * u + w * w + z * z + upper_sq - fore_sq
+        discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
+        if discriminant < 0.0:
+            return _IK_OUTSIDE, arm
+        root = math.sqrt(discriminant)
+        scale = 1.0 / (2.0 * upper * (u * u + z * z))
+        cos_q = (u * g - z * root) * scale
+        sin_q = -(z * g + u * root) * scale
+        trig[0, arm], trig[1, arm] = cos_q, sin_q
+        q[row, arm] = math.atan2(sin_q, cos_q)
+    for arm in range(3):
+        if q[row, arm] < joint_min or q[row, arm] > joint_max:
+            return _IK_LIMIT, arm
+    return _IK_OK, 0
+
+
+@kernel
+def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q, status,
+             arms):
+    """:func:`_ik_row` of every row: ``status`` and ``arms`` (N,) receive its result."""
+    trig = np.empty((2, 3))
+    for row in range(points.shape[0]):
+        status[row], arms[row] = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm,
+                                         joint_min, joint_max, q, trig)
+
+
+@kernel
+def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, singular_diagonal,
+              trig, qdot, qddot, given_qdot):
+    """
+    Joint rates of row ``row`` (analytic Jacobian); return (singular arm or -1, its s.b).
+
+    Differentiating ``|s_i|^2 = L2^2`` with ``s_i = C_i - B_i`` the forearm vector gives
+    the standard Delta form ``A p_dot = B q_dot`` with rows ``A_i = s_i^T`` and
+    ``B = diag(s_i . b_i)``, ``b_i = dB_i/dq_i``; once more, with ``c_i = d^2B_i/dq_i^2``,
+    ``q_ddot_i = (s_i . p_ddot + |s_dot_i|^2 - (s_i . c_i) q_dot_i^2) / (s_i . b_i)``,
+    ``s_dot_i = p_dot - b_i q_dot_i``. ``trig`` (2, 3) holds cos q and sin q of the
+    arms; ``q_dot`` is read from ``qdot[row]`` if ``given_qdot``, else written there.
+    """
+    x, y, z = points[row, 0], points[row, 1], points[row, 2]
+    for arm in range(3):
+        cos_q, sin_q = trig[0, arm], trig[1, arm]
+        reach = -offset - upper * cos_q
+        upper_sin, upper_cos = upper * sin_q, upper * cos_q
+        sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
+        bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
+        diagonal = sx * bx + sy * by + sz * bz
+        if abs(diagonal) < singular_diagonal:
+            return _smallest_diagonal(points, row, rx, ry, offset, upper, trig)
+        if not given_qdot:
+            qdot[row, arm] = (sx * velocities[row, 0] + sy * velocities[row, 1]
+                              + sz * velocities[row, 2]) / diagonal
+        rate = qdot[row, arm]
+        rate_x = velocities[row, 0] - bx * rate
+        rate_y = velocities[row, 1] - by * rate
+        rate_z = velocities[row, 2] - bz * rate
+        numerator = (sx * accelerations[row, 0] + sy * accelerations[row, 1]
+                     + sz * accelerations[row, 2]
+                     + (rate_x * rate_x + rate_y * rate_y + rate_z * rate_z)
+                     - (sx * (-upper_cos * rx[arm]) + sy * (-upper_cos * ry[arm])
+                        + sz * upper_sin) * rate * rate)
+        qddot[row, arm] = numerator / diagonal
+    return -1, 0.0
+
+
+@kernel
+def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, singular_diagonal,
+               qdot, qddot, given_qdot):
+    """Run :func:`_rate_row` on every row; return the first singular (row, arm, s.b) or row -1."""
+    trig = np.empty((2, 3))
+    for row in range(points.shape[0]):
+        for arm in range(3):
+            trig[0, arm], trig[1, arm] = math.cos(q[row, arm]), math.sin(q[row, arm])
+        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper,
+                                  singular_diagonal, trig, qdot, qddot, given_qdot)
+        if arm >= 0:
+            return row, arm, diagonal
+    return -1, 0, 0.0
+
+
+@kernel
+def _smallest_diagonal(points, row, rx, ry, offset, upper, trig):
+    """Return the arm of row ``row`` with the smallest ``|s_i . b_i|``, and that value."""
+    smallest, smallest_arm = np.inf, 0
+    for arm in range(3):
+        cos_q, sin_q = trig[0, arm], trig[1, arm]
+        reach = -offset - upper * cos_q
+        diagonal = ((points[row, 0] + reach * rx[arm]) * (-upper * sin_q * rx[arm])
+                    + (points[row, 1] + reach * ry[arm]) * (-upper * sin_q * ry[arm])
+                    + (points[row, 2] + upper * sin_q) * (-upper * cos_q))
+        if abs(diagonal) < abs(smallest):
+            smallest, smallest_arm = diagonal, arm
+    return smallest_arm, smallest
+
+
 @kernel
 def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper, forearm,
                 joint_min, joint_max, singular_diagonal, q, qdot, qddot):
     """
-    Per row, :func:`joint_motion`'s IK and rates; return the first row that fails, or -1.
+    Per row, :func:`joint_motion`'s IK and rates.
 
-    A failing row (out of reach, beyond a joint limit, at an IK singularity) stops the
-    loop: the caller names it with the vectorised form's messages.
+    Stops at the first row that fails (out of reach, beyond a joint limit, at an IK
+    singularity) and returns (row, status, arm, value) for :func:`_joint_failure`;
+    row -1 when every row succeeds.
     """
-    fore_sq = forearm * forearm
-    upper_sq = upper * upper
+    trig = np.empty((2, 3))
     for row in range(points.shape[0]):
-        x, y, z = points[row, 0], points[row, 1], points[row, 2]
-        if z >= 0.0:
-            return row
-        for arm in range(3):
-            u = x * rx[arm] + y * ry[arm] + -offset
-            w = x * tx[arm] + y * ty[arm]
-            g = u * u + w * w + z * z + upper_sq - fore_sq
-            discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
-            if discriminant < 0.0:
-                return row
-            angle = -math.atan2(z, u) - math.atan2(math.sqrt(discriminant), g)
-            if angle < joint_min or angle > joint_max:
-                return row
-            q[row, arm] = angle
-        for arm in range(3):
-            cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
-            reach = -offset - upper * cos_q
-            upper_sin, upper_cos = upper * sin_q, upper * cos_q
-            sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
-            bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
-            diagonal = sx * bx + sy * by + sz * bz
-            if abs(diagonal) < singular_diagonal:
-                return row
-            rate = (sx * velocities[row, 0] + sy * velocities[row, 1]
-                    + sz * velocities[row, 2]) / diagonal
-            qdot[row, arm] = rate
-            rate_x = velocities[row, 0] - bx * rate
-            rate_y = velocities[row, 1] - by * rate
-            rate_z = velocities[row, 2] - bz * rate
-            numerator = (sx * accelerations[row, 0] + sy * accelerations[row, 1]
-                         + sz * accelerations[row, 2]
-                         + (rate_x * rate_x + rate_y * rate_y + rate_z * rate_z)
-                         - (sx * (-upper_cos * rx[arm]) + sy * (-upper_cos * ry[arm])
-                            + sz * upper_sin) * rate * rate)
-            qddot[row, arm] = numerator / diagonal
-    return -1
+        status, arm = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min,
+                              joint_max, q, trig)
+        if status != _IK_OK:
+            return row, status, arm, q[row, arm]
+        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset,
+                                  upper, singular_diagonal, trig, qdot, qddot, False)
+        if arm >= 0:
+            return row, _IK_SINGULAR, arm, diagonal
+    return -1, _IK_OK, 0, 0.0

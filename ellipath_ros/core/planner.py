@@ -30,20 +30,22 @@ import time
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
-    check_joint_limits, EXECUTED_KEYS, executed_table, JointTrajectoryData, minimal_knots,
-    MotionSamples, on_whole_nanoseconds, quintic_interpolate, quintic_positions,
-    sample_joint_trajectory, validate_jtc)
+    _fill_quintic, _polynomial, check_joint_limits, EXECUTED_KEYS, executed_table,
+    JointTrajectoryData, minimal_knots, MotionSamples, on_whole_nanoseconds,
+    quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    assembled_joint_rates, DeltaGeometry, forward_kinematics, inverse_kinematics,
-    joint_velocities, JointLimits, largest_magnitude_per_row, reachable)
+    _ASSEMBLED, _forward_row, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
+    forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
+    largest_magnitude_per_row)
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
 from .timing import time_motion
-from .workspace import SafeWorkspace
+from .workspace import inside, SafeWorkspace
 
 # Path samples for the reachability check and the joint-speed cap: at most this far apart.
 _REACH_CHECK_SPACING = 0.002
@@ -290,16 +292,18 @@ def _check_reach_and_speed_cap(path, config):
     """
     count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
-    samples = path.at_lengths(s)
-    rates = assembled_joint_rates(samples.position, samples.tangent, config.geometry)
-    if rates is None or not reachable(path.apex, config.geometry):
+    position, tangent = path.rows_at_lengths(s)[:2]
+    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
+    points, directions = np.empty((count + 1, 3)), np.zeros((count + 1, 3))
+    points[:-1], points[-1], directions[:-1] = position.T, path.apex, tangent.T
+    rates = assembled_joint_rates(points, directions, config.geometry)
+    if rates is None:
         # Named as always: the first of the samples and the apex out of reach, else the first
         # sample at a singularity.
-        points = np.vstack((samples.position, path.apex))
         q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
-        dq_ds = joint_velocities(samples.position, q, samples.tangent, config.geometry)
+        dq_ds = joint_velocities(points[:-1], q, directions[:-1], config.geometry)
     else:
-        dq_ds = rates[1]
+        dq_ds = rates[1][:-1]
     caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
         largest_magnitude_per_row(dq_ds), 1e-12)
 
@@ -421,10 +425,52 @@ def _check_executed_workspace(trajectory, config, leg):
     times = trajectory.time_from_start
     count = max(int(math.ceil((times[-1] - times[0]) / _WORKSPACE_CHECK_PERIOD)) + 1, 2)
     t = np.linspace(times[0], times[-1], count)
+    workspace = config.workspace
+    if _first_outside(times, trajectory.positions, trajectory.velocities,
+                      trajectory.accelerations, t, *_kernel_geometry(config.geometry)[:5],
+                      workspace.radius, workspace.z_min, workspace.z_max, workspace.box_table(),
+                      _EXECUTED_WORKSPACE_TOLERANCE) < 0:
+        return
+    # Named as the vectorised check names it: the first sample out of reach or outside.
     tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry,
                              name='interpolated q')
-    config.workspace.check(tcp, name=f'executed TCP of the {leg} leg', times=t,
-                           tolerance=_EXECUTED_WORKSPACE_TOLERANCE)
+    workspace.check(tcp, name=f'executed TCP of the {leg} leg', times=t,
+                    tolerance=_EXECUTED_WORKSPACE_TOLERANCE)
+
+
+@kernel
+def _first_outside(knots, positions, velocities, accelerations, times, rx, ry, offset, upper,
+                   forearm_sq, radius, z_min, z_max, boxes, tolerance):
+    """
+    Return the first of ``times`` (sorted) whose executed TCP leaves the workspace, or -1.
+
+    The executed TCP is the forward kinematics of JTC's quintic through the knots (the last
+    point held from the last knot on); a pose that cannot be assembled counts as outside.
+    """
+    c = np.empty((6, 3))
+    point = np.empty((1, 3))
+    final = knots.size - 1
+    segment = -1
+    for row in range(times.size):
+        time = times[row]
+        if time >= knots[final] or final == 0:
+            joints = (positions[final, 0], positions[final, 1], positions[final, 2])
+        else:
+            wanted = segment if segment >= 0 else 0
+            while wanted < final - 1 and knots[wanted + 1] <= time:
+                wanted += 1
+            if wanted != segment:
+                segment = wanted
+                _fill_quintic(knots[segment + 1] - knots[segment], positions, positions,
+                              velocities, velocities, accelerations, accelerations, segment,
+                              segment + 1, c)
+            x = max(time - knots[segment], 0.0)
+            joints = (_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0))
+        if _forward_row(joints[0], joints[1], joints[2], rx, ry, offset, upper, forearm_sq,
+                        point, 0) != _ASSEMBLED or not inside(
+                point[0, 0], point[0, 1], point[0, 2], radius, z_min, z_max, boxes, tolerance):
+            return row
+    return -1
 
 
 def _spaced(times, added):
@@ -518,8 +564,7 @@ def _joint_points(motion, config, bounds, samples=None):
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
     trajectory, error = minimal_knots(motion, geometry, config.joint_names,
                                       config.knot_tolerance, samples=samples)
-    step_times, step_sizes = motion.jerk_steps()
-    steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
+    steps = None
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
     for _ in range(_KNOT_ROUNDS):
@@ -529,6 +574,10 @@ def _joint_points(motion, config, bounds, samples=None):
             table > (1.0 + _QUINTIC_EXCESS) * samples.segment_peaks(times))).any(axis=1))
         if broken.size == 0:
             break
+        if steps is None:
+            # Only a leg with a broken segment needs its jerk steps.
+            step_times, step_sizes = motion.jerk_steps()
+            steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
         added = []
         for index in broken:
             start, end = times[index], times[index + 1]
