@@ -52,6 +52,11 @@ class _JerkPieces:
     def duration(self):
         return float(self.times[-1])
 
+    def bounds(self):
+        """Return the times [s] (K + 1,) and path lengths [m] (K + 1,) of the piece bounds."""
+        end = self.state(self.times[-1:])[0][0]
+        return self.times, np.append(self.s0, end)
+
     def state(self, t):
         """Return (s, v, a, j), each shaped like ``t`` (N,)."""
         t = np.asarray(t, dtype=float)
@@ -114,6 +119,26 @@ class _Sequence:
     @property
     def duration(self):
         return float(sum(law.duration for law in self.laws))
+
+    def bounds(self):
+        """
+        Return the times [s] and path lengths [m] where each law starts, and the end.
+
+        Within a law the lengths of :meth:`_JerkPieces.bounds` (a law without piece
+        bounds contributes its ends only).
+        """
+        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
+        times, lengths = [], []
+        for start, law in zip(starts, self.laws):
+            if hasattr(law, 'bounds'):
+                law_times, law_lengths = law.bounds()
+            else:
+                law_times = np.array([0.0, law.duration])
+                law_lengths = np.array([law.state(law_times[:1])[0][0],
+                                        law.state(law_times[1:])[0][0]])
+            times.append(start + law_times)
+            lengths.append(law_lengths)
+        return np.concatenate(times), np.concatenate(lengths)
 
     def state(self, t):
         starts = np.cumsum([0.0] + [law.duration for law in self.laws])
@@ -369,13 +394,8 @@ class TimedMotion:
         # s(t) is increasing: interpolate each mark between the lengths at the law's piece
         # bounds (or samples), then refine by Newton steps on the law (where s' = 0 the
         # interpolation stays).
-        law_times = getattr(self.law, 'times', None)
-        if law_times is not None:
-            t = np.interp(marks, np.append(self.law.s0, path.length),
-                          law_times * self.time_scale)
-        else:
-            sample_times = _sample_times(self.duration, _CHECK_PERIOD)
-            t = np.interp(marks, self.path_state(sample_times)[0], sample_times)
+        bound_times, bound_lengths = self.law.bounds()
+        t = np.interp(marks, bound_lengths, bound_times * self.time_scale)
         for _ in range(3):
             s, v, _, _ = self.path_state(t)
             moving = v > 1e-9
