@@ -28,7 +28,6 @@ import numpy as np
 from .compiled import kernel
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
-from .joint_trajectory import _nearest_sample
 
 PROFILES = ('curvature', 'time_optimal')
 # Default sample period of TimedMotion.metrics [s], and its most samples.
@@ -354,21 +353,23 @@ class TimedMotion:
 
         The jerk steps where the law's third derivative does (its piece bounds)
         and where the path's curvature rate does (T1, T2 and, with a G2 join,
-        where the transitions meet the ellipse); the size is the norm of the
-        difference of the one-sided jerk vectors, 1e-9 of the duration off the
-        step on both sides. The law's bounds are samples of
-        :meth:`sampled_states` already, so only the path's marks are evaluated.
+        where the transitions meet the ellipse). At a piece bound where the
+        path is smooth only the law's jerk steps (s, s' and s'' are
+        continuous), along the unit tangent: the size is read from the law's
+        pieces. At the path's marks it is the norm of the difference of the
+        one-sided jerk vectors, 1e-9 of the duration off the mark on both
+        sides (a piece bound there is counted in it).
         """
-        law_times = getattr(self.law, 'times', None)
         epsilon = 1e-9 * self.duration
+        marks = self._mark_times()
         times, sizes = np.zeros(0), np.zeros(0)
+        law_times = getattr(self.law, 'times', None)
         if law_times is not None:
             times = law_times[1:-1] * self.time_scale
-            sample_times, _, _, _, jerk = self.sampled_states()
-            before = _nearest_sample(sample_times, np.maximum(times - epsilon, 0.0))
-            after = _nearest_sample(sample_times, np.minimum(times + epsilon, self.duration))
-            sizes = np.linalg.norm(jerk[after] - jerk[before], axis=1)
-        marks = self._mark_times()
+            sizes = np.abs(np.diff(self.law.jerk)) / self.time_scale ** 3
+            if marks.size:
+                apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+                times, sizes = times[apart], sizes[apart]
         if marks.size:
             jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
                                                  np.minimum(marks + epsilon, self.duration))))[3]
