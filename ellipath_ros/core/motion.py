@@ -28,7 +28,6 @@ import numpy as np
 from .compiled import kernel
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
-from .joint_trajectory import _nearest_sample
 
 PROFILES = ('curvature', 'time_optimal')
 # Default sample period of TimedMotion.metrics [s], and its most samples.
@@ -51,6 +50,11 @@ class _JerkPieces:
     @property
     def duration(self):
         return float(self.times[-1])
+
+    def bounds(self):
+        """Return the times [s] (K + 1,) and path lengths [m] (K + 1,) of the piece bounds."""
+        end = self.state(self.times[-1:])[0][0]
+        return self.times, np.append(self.s0, end)
 
     def state(self, t):
         """Return (s, v, a, j), each shaped like ``t`` (N,)."""
@@ -114,6 +118,26 @@ class _Sequence:
     @property
     def duration(self):
         return float(sum(law.duration for law in self.laws))
+
+    def bounds(self):
+        """
+        Return the times [s] and path lengths [m] where each law starts, and the end.
+
+        Within a law the lengths of :meth:`_JerkPieces.bounds` (a law without piece
+        bounds contributes its ends only).
+        """
+        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
+        times, lengths = [], []
+        for start, law in zip(starts, self.laws):
+            if hasattr(law, 'bounds'):
+                law_times, law_lengths = law.bounds()
+            else:
+                law_times = np.array([0.0, law.duration])
+                law_lengths = np.array([law.state(law_times[:1])[0][0],
+                                        law.state(law_times[1:])[0][0]])
+            times.append(start + law_times)
+            lengths.append(law_lengths)
+        return np.concatenate(times), np.concatenate(lengths)
 
     def state(self, t):
         starts = np.cumsum([0.0] + [law.duration for law in self.laws])
@@ -329,21 +353,23 @@ class TimedMotion:
 
         The jerk steps where the law's third derivative does (its piece bounds)
         and where the path's curvature rate does (T1, T2 and, with a G2 join,
-        where the transitions meet the ellipse); the size is the norm of the
-        difference of the one-sided jerk vectors, 1e-9 of the duration off the
-        step on both sides. The law's bounds are samples of
-        :meth:`sampled_states` already, so only the path's marks are evaluated.
+        where the transitions meet the ellipse). At a piece bound where the
+        path is smooth only the law's jerk steps (s, s' and s'' are
+        continuous), along the unit tangent: the size is read from the law's
+        pieces. At the path's marks it is the norm of the difference of the
+        one-sided jerk vectors, 1e-9 of the duration off the mark on both
+        sides (a piece bound there is counted in it).
         """
-        law_times = getattr(self.law, 'times', None)
         epsilon = 1e-9 * self.duration
+        marks = self._mark_times()
         times, sizes = np.zeros(0), np.zeros(0)
+        law_times = getattr(self.law, 'times', None)
         if law_times is not None:
             times = law_times[1:-1] * self.time_scale
-            sample_times, _, _, _, jerk = self.sampled_states()
-            before = _nearest_sample(sample_times, np.maximum(times - epsilon, 0.0))
-            after = _nearest_sample(sample_times, np.minimum(times + epsilon, self.duration))
-            sizes = np.linalg.norm(jerk[after] - jerk[before], axis=1)
-        marks = self._mark_times()
+            sizes = np.abs(np.diff(self.law.jerk)) / self.time_scale ** 3
+            if marks.size:
+                apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+                times, sizes = times[apart], sizes[apart]
         if marks.size:
             jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
                                                  np.minimum(marks + epsilon, self.duration))))[3]
@@ -369,13 +395,8 @@ class TimedMotion:
         # s(t) is increasing: interpolate each mark between the lengths at the law's piece
         # bounds (or samples), then refine by Newton steps on the law (where s' = 0 the
         # interpolation stays).
-        law_times = getattr(self.law, 'times', None)
-        if law_times is not None:
-            t = np.interp(marks, np.append(self.law.s0, path.length),
-                          law_times * self.time_scale)
-        else:
-            sample_times = _sample_times(self.duration, _CHECK_PERIOD)
-            t = np.interp(marks, self.path_state(sample_times)[0], sample_times)
+        bound_times, bound_lengths = self.law.bounds()
+        t = np.interp(marks, bound_lengths, bound_times * self.time_scale)
         for _ in range(3):
             s, v, _, _ = self.path_state(t)
             moving = v > 1e-9
