@@ -45,8 +45,10 @@ ROS_DOMAIN_OFFSET = 2  # see conftest.py
 START_TIMEOUT = 30.0  # s, from process start to the ready line (imports, DDS)
 STOP_TIMEOUT = 10.0  # s, from the signal to the end of the process
 PACKAGE_ROOT = str(Path(ellipath_ros.__file__).resolve().parents[1])
-# output_mode samples every 0.1 ms: a plan of about a second, long enough to be interrupted.
-SLOW_PLAN = ('-p', 'output_mode:=samples', '-p', 'sample_period:=0.0001')
+# The paper's curvature profile (legs of about 2 s) sampled every 0.1 ms: a plan long enough
+# to be interrupted (the time-optimal legs, ~0.3 s, now plan in less than the 0.15 s wait).
+SLOW_PLAN = ('-p', 'output_mode:=samples', '-p', 'sample_period:=0.0001',
+             '-p', 'profile:=curvature', '-p', 'join:=paper')
 
 
 class NodeProcess:
