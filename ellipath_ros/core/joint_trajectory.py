@@ -1324,8 +1324,9 @@ def executed_table(trajectory, geometry, previous=None):
     every quantity's largest sample is refined by a parabola through it and its
     neighbours, evaluated exactly at its vertex: a peak between samples is found,
     not only the samples. Segments within ``_EXECUTED_REFINE_SHARE`` of a
-    quantity's largest peak are then sampled ``_EXECUTED_REFINE`` times as densely. ``previous`` = (knot times, table) of an earlier set of
-    knots: segments it has (same start, same end) are taken from it.
+    quantity's largest peak are then sampled ``_EXECUTED_REFINE`` times as
+    densely. ``previous`` = (knot times, table) of an earlier set of knots:
+    segments it has (same start, same end) are taken from it.
     """
     times = trajectory.time_from_start
     table = np.zeros((times.size - 1, len(EXECUTED_KEYS)))
