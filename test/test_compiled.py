@@ -20,7 +20,9 @@ import sys
 import textwrap
 
 # Run in a fresh interpreter (this one may have called the kernels already): warm up, then
-# plan requests with both joins and both profiles and a belt pick; list each kernel of the
+# plan requests with both joins and both profiles, a belt pick and a request the executed
+# workspace check rejects (a keep-out box across its approach leg: the first such rejection
+# took 9 s in the node before the warm-up had one); list each kernel of the
 # core whose compiled forms changed meanwhile (a kernel first called from Python compiles, or
 # loads from the cache, on that call).
 SCRIPT = textwrap.dedent("""
@@ -60,8 +62,18 @@ SCRIPT = textwrap.dedent("""
     plan_belt_cycle(np.array([0.12, 0.18, -0.78]), np.array([-0.2, 0.05, -0.85]),
                     np.array([0.15, 0.2, -0.8]), planner.PlannerConfig(), belt,
                     pick_dwell=0.05, latch_time=0.0, start_time=0.02)
+    box = (-0.26, -0.3, -1.0, -0.21, 0.3, -0.84)
+    crossed = dataclasses.replace(planner.PlannerConfig(), workspace=dataclasses.replace(
+        planner.PlannerConfig().workspace, keep_out_boxes=(box,)))
+    try:
+        planner.plan_cycle(np.array([0.14, 0.08, -0.8]), np.array([-0.3, 0.0, -0.9]),
+                           np.array([0.18, -0.08, -0.83]), crossed)
+        rejected = ''
+    except EllipathError as error:
+        rejected = error.kind
     after = forms()
-    print(json.dumps({'first': first, 'again': again, 'plans': plans, 'kernels': len(before),
+    print(json.dumps({'rejected': rejected, 'first': first, 'again': again, 'plans': plans,
+                      'kernels': len(before),
                       'changed': sorted(name for name in after if after[name] != before[name])}))
 """)
 
@@ -72,4 +84,5 @@ def test_after_the_warm_up_requests_compile_and_load_no_kernel():
     report = json.loads(result.stdout.splitlines()[-1])
     assert report['first'] > 0.0 and report['again'] == 0.0
     assert report['plans'] >= 30 and report['kernels'] >= 60
+    assert report['rejected'] == 'workspace'
     assert report['changed'] == []
