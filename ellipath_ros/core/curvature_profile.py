@@ -185,6 +185,11 @@ class _CurvatureArcLaw:
         _, s, speed, accel, jerk = self._evaluate(t)
         return s, speed, accel, jerk
 
+    def bounds(self):
+        """Return the times [s] (2,) and path lengths [m] (2,) of the law's ends."""
+        times = np.array([0.0, self.duration])
+        return times, self.state(times)[0]
+
 
 @kernel
 def _sigma_and_rates(theta, a, b):

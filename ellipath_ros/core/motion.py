@@ -123,18 +123,13 @@ class _Sequence:
         """
         Return the times [s] and path lengths [m] where each law starts, and the end.
 
-        Within a law the lengths of :meth:`_JerkPieces.bounds` (a law without piece
-        bounds contributes its ends only).
+        Within a law its own ``bounds()`` (:meth:`_JerkPieces.bounds`; the curvature
+        profile's arc law gives its ends).
         """
         starts = np.cumsum([0.0] + [law.duration for law in self.laws])
         times, lengths = [], []
         for start, law in zip(starts, self.laws):
-            if hasattr(law, 'bounds'):
-                law_times, law_lengths = law.bounds()
-            else:
-                law_times = np.array([0.0, law.duration])
-                law_lengths = np.array([law.state(law_times[:1])[0][0],
-                                        law.state(law_times[1:])[0][0]])
+            law_times, law_lengths = law.bounds()
             times.append(start + law_times)
             lengths.append(law_lengths)
         return np.concatenate(times), np.concatenate(lengths)
