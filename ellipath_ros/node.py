@@ -40,7 +40,9 @@ freedom and its effector stays level, so the orientation is ignored. Poses must 
 Pairing of the two pose topics (parameter ``pairing``): ``stamp`` (default) pairs a place with
 the pick of identical ``header.stamp``, up to ``PENDING_PICKS`` picks waiting, so a message
 lost in transport never joins a place with another pick; ``sequence`` pairs a place with the
-pending pick. A place with no pick is rejected; a place consumes its pick either way.
+pending pick. A place with no pick is rejected; a place consumes its pick either way. With
+``stamp``, a place read before its pick (two topics keep no order) waits ``PLACE_WAIT`` for it
+before it is rejected.
 ``pick_place`` needs no pairing.
 
 Intake QoS (``INTAKE_QOS``): the pose topics are RELIABLE and KEEP_ALL, so DDS discards
@@ -166,6 +168,12 @@ DIAGNOSTICS_DEPTH = 1000
 # place_pose backlog in DDS (two histories of 5000, see INTAKE_QOS); picks whose place was
 # never sent wait too, until evicted. A waiting pick takes about 0.3 kB.
 PENDING_PICKS = 12_000
+# Two topics keep no order between them: under load a place can be read before the pick sent
+# ahead of it (2 of 900 two-topic pairs in a 30-minute soak were rejected as unpaired so). A
+# place whose pick has not arrived (stamp pairing) waits this long [s] for it, then is
+# rejected `unpaired` with a status; the intake group checks every PLACE_WAIT_CHECK [s].
+PLACE_WAIT = 0.5
+PLACE_WAIT_CHECK = 0.25
 # The release thread polls the clock for this long before a release is due, rather than
 # sleeping until then: a sleeping thread can get a core milliseconds late on a busy machine.
 RELEASE_SPIN = 0.002  # s
@@ -279,6 +287,7 @@ class EllipathNode(Node):
                                  callback_group=intake_group)
         self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_QOS,
                                  callback_group=intake_group)
+        self.create_timer(PLACE_WAIT_CHECK, self._expire_places, callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
@@ -480,18 +489,32 @@ class EllipathNode(Node):
         position = self._checked_pick('pick_pose.pose.position', pose_position(message),
                                       settings)
         # A pick it displaces is reported by _intake (PosePairing.take_notices).
-        self._pairing.add_pick(_stamp_key(message.header.stamp), position, settings.pairing,
-                               PENDING_PICKS)
+        held = self._pairing.add_pick(_stamp_key(message.header.stamp), position,
+                                      settings.pairing, PENDING_PICKS)
+        if held is not None:
+            # Its place was read first and waited for it: the pair is the place's.
+            place, latch_time = held
+            self._intake('place_pose', lambda *_: self._sequencer.submit(
+                position, place, 'place_pose', latch_time), message)
 
     def _take_place(self, message, settings):
-        """Pair a place pose with its pick and queue the pair."""
-        pick = self._pairing.take_pick(_stamp_key(message.header.stamp), settings.pairing)
+        """Pair a place pose with its pick and queue the pair (or hold it for its pick)."""
+        key = _stamp_key(message.header.stamp)
+        pick = self._pairing.take_pick(key, settings.pairing, PLACE_WAIT, PENDING_PICKS)
         self._checked_frame('place_pose', message.header.frame_id, settings)
         place = self._checked_point('place_pose.pose.position', pose_position(message),
                                     settings)
         # With stamp pairing the place's stamp is the pick's: the time the object was there.
-        self._sequencer.submit(pick, place, 'place_pose',
-                               self._latch_time(message.header.stamp))
+        latch_time = self._latch_time(message.header.stamp)
+        if pick is None:
+            self._pairing.hold_place(key, (place, latch_time), time.monotonic(), PLACE_WAIT)
+            return
+        self._sequencer.submit(pick, place, 'place_pose', latch_time)
+
+    def _expire_places(self):
+        """Reject, each with a status, the places whose pick did not come in PLACE_WAIT."""
+        for error in self._pairing.expired_places(time.monotonic()):
+            self._intake('place_pose', _raise, error)
 
     def _take_pick_place(self, message, settings):
         """Validate a [pick, place] PoseArray and queue the pair."""
@@ -907,6 +930,7 @@ class EllipathNode(Node):
         values.update((f'pairs_{name}', count)
                       for name, count in self._sequencer.counts().items())
         values.update((f'picks_{name}', count) for name, count in self._pairing.counts().items())
+        values['places_waiting'] = self._pairing.waiting_places
         return values
 
     def _release_values(self, release, check):
@@ -985,6 +1009,11 @@ def _time_at(seconds):
     """Return a node-clock time [s] as builtin_interfaces/Time (whole nanoseconds)."""
     sec, nanosec = divmod(_nanoseconds(seconds), 1_000_000_000)
     return Time(sec=sec, nanosec=nanosec)
+
+
+def _raise(error, settings):
+    """Raise ``error`` (an intake handler for an error found outside a message)."""
+    raise error
 
 
 def _stamp_key(stamp):

@@ -50,6 +50,7 @@ from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.sequencing import PairRequest
 from ellipath_ros.core.settings import default_values
 from ellipath_ros.node import EllipathNode
+from ellipath_ros.node import PLACE_WAIT
 from ellipath_ros.parameters import build_settings
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
@@ -474,6 +475,28 @@ def test_stamp_pairing_pairs_equal_stamps(make_harness):
     assert status.level == DiagnosticStatus.OK
     assert distance_to(trajectory, PICK) < PASSES
     assert harness.node.pending_pick_count == 0
+
+
+def test_a_place_read_before_its_pick_waits_for_it(make_harness):
+    """Two topics keep no order: a place first is held for its own pick, never another's."""
+    harness = make_harness({'pairing': 'stamp'})
+    harness.send_pick(OTHER_PICK, stamp=Time(sec=20))
+    statuses, trajectories = len(harness.statuses), len(harness.received)
+    harness.place_publisher.publish(pose(PLACE, stamp=Time(sec=21)))
+    assert harness.spin_until(lambda: harness.node._pairing.waiting_places == 1)
+    assert len(harness.statuses) == statuses  # no status yet: it waits
+    harness.pick_publisher.publish(pose(PICK, stamp=Time(sec=21)))
+    status, trajectory = harness._answer(statuses, trajectories)
+    assert status.level == DiagnosticStatus.OK and values_of(status)['topic'] == 'place_pose'
+    assert distance_to(trajectory, PICK) < PASSES
+    assert distance_to(trajectory, OTHER_PICK) > 0.01
+    assert harness.node.pending_pick_count == 1 and harness.node._pairing.waiting_places == 0
+    # A place whose pick never comes is rejected after PLACE_WAIT, with a status.
+    began = time.monotonic()
+    status, trajectory = harness.send_place(PLACE, stamp=Time(sec=22))
+    assert values_of(status)['kind'] == 'unpaired' and trajectory is None
+    assert '(22, 0)' in status.message and time.monotonic() - began >= PLACE_WAIT
+    assert harness.node._pairing.waiting_places == 0
 
 
 @pytest.mark.parametrize('name, value, reason', [

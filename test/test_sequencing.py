@@ -120,6 +120,60 @@ def test_stamp_pairing_pairs_identical_stamps_and_never_another_pick():
     assert pick_ledger_adds_up(counts)
 
 
+def test_a_place_read_before_its_pick_waits_for_it_and_joins_no_other():
+    pairing = PosePairing()
+    pairing.add_pick((1, 0), 'a', 'stamp', 10)
+    # The place of stamp 2 is read before its pick: it waits instead of being rejected.
+    assert pairing.take_pick((2, 0), 'stamp', wait=0.5, depth=10) is None
+    pairing.hold_place((2, 0), 'place 2', now=10.0, wait=0.5)
+    assert pairing.waiting_places == 1 and len(pairing) == 1
+    assert pairing.expired_places(10.4) == []
+    # Pick 3 does not take place 2; pick 2 does, and is counted paired.
+    assert pairing.add_pick((3, 0), 'c', 'stamp', 10) is None
+    assert pairing.add_pick((2, 0), 'b', 'stamp', 10) == 'place 2'
+    assert pairing.waiting_places == 0 and len(pairing) == 2
+    assert pairing.take_pick((1, 0), 'stamp') == 'a'
+    counts = pairing.counts()
+    assert (counts['received'], counts['paired'], counts['pending']) == (3, 2, 1)
+    assert pick_ledger_adds_up(counts)
+
+
+def test_a_waiting_place_expires_as_unpaired_and_waiting_is_bounded():
+    pairing = PosePairing()
+    assert pairing.take_pick((5, 0), 'stamp', wait=0.5, depth=1) is None
+    pairing.hold_place((5, 0), 'place 5', now=1.0, wait=0.5)
+    # No room for a second waiting place, and no waiting without ``wait``: unpaired at once.
+    with pytest.raises(UnpairedPlaceError, match=r'stamp \(6, 0\)'):
+        pairing.take_pick((6, 0), 'stamp', wait=0.5, depth=1)
+    with pytest.raises(UnpairedPlaceError):
+        pairing.take_pick((7, 0), 'stamp')
+    assert pairing.expired_places(1.499) == []
+    [error] = pairing.expired_places(1.5)
+    assert isinstance(error, UnpairedPlaceError) and error.kind == 'unpaired'
+    assert '(5, 0)' in str(error) and '0.5 s' in str(error)
+    assert pairing.waiting_places == 0 and pairing.expired_places(9.0) == []
+    # Its pick, late, waits as a pick (evicted in time), never joined with another place.
+    assert pairing.add_pick((5, 0), 'late', 'stamp', 10) is None
+    assert len(pairing) == 1
+
+
+def test_sequence_pairing_never_holds_a_place_and_a_mode_change_expires_waiting_ones():
+    pairing = PosePairing()
+    with pytest.raises(UnpairedPlaceError, match='pending'):
+        pairing.take_pick((1, 0), 'sequence', wait=0.5, depth=10)
+    assert pairing.take_pick((2, 0), 'stamp', wait=0.5, depth=10) is None
+    pairing.hold_place((2, 0), 'place 2', now=0.0, wait=0.5)
+    # A second place of the same stamp replaces the first, which expires at once.
+    pairing.hold_place((2, 0), 'place 2 again', now=0.1, wait=0.5)
+    assert pairing.waiting_places == 2  # the replaced one is still to be answered
+    [replaced] = pairing.expired_places(0.1)
+    assert 'second' in str(replaced) and '(2, 0)' in str(replaced)
+    assert pairing.add_pick((2, 0), 'b', 'sequence', 10) is None
+    [cleared] = pairing.expired_places(0.2)
+    assert 'stamp to sequence' in str(cleared) and pairing.waiting_places == 0
+    assert pairing.take_pick((9, 0), 'sequence') == 'b'
+
+
 def test_sequence_pairing_takes_the_pending_pick_and_a_mode_change_clears():
     pairing = PosePairing()
     pairing.add_pick((1, 0), 'a', 'sequence', 10)
