@@ -83,18 +83,18 @@ class _PieceList:
     """Collects constant-jerk pieces (duration, s, v, a, j) into a :class:`_JerkPieces`."""
 
     def __init__(self):
-        self.rows = []
-
-    def add(self, duration, s, v, a, j):
-        if duration > 0.0:
-            self.rows.append((duration, s, v, a, j))
+        self.blocks = []
 
     def extend(self, rows, s_offset=0.0):
-        for duration, s, v, a, j in rows:
-            self.add(duration, s + s_offset, v, a, j)
+        """Append ``rows`` ((K, 5) or a sequence of such rows), s + ``s_offset``, none empty."""
+        # One array per call, not a Python call per row: a scan's rows are hundreds of pieces.
+        block = np.array(rows, dtype=float).reshape(-1, 5)
+        block = block[block[:, 0] > 0.0]
+        block[:, 1] += s_offset
+        self.blocks.append(block)
 
     def law(self):
-        rows = np.array(self.rows, dtype=float).reshape(-1, 5)
+        rows = np.concatenate(self.blocks) if self.blocks else np.empty((0, 5))
         times = np.concatenate(([0.0], np.cumsum(rows[:, 0])))
         return _JerkPieces(times, rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4])
 

@@ -37,10 +37,10 @@ from .arc_scan import (
     _table_at, _time_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
-    _constant_limits, _line_rows, _reach_speed, _ruckig_rows, _straight_motion)
+    _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows, _straight_motion)
 
 # Grid of the curvature tables along the arc (intervals; more for very tight bends).
 _TABLE_INTERVALS = 2048
@@ -115,8 +115,7 @@ class _ArcPlanner:
         # Cells no longer than the smallest radius of curvature (the arc may be a needle).
         intervals = int(min(_TABLE_INTERVALS_MAX, max(_TABLE_INTERVALS, 2 ** math.ceil(
             math.log2(self.length / bend.min_radius)))))
-        t, kappa_t, kappa_s_t = bend.curvature_on_grid(2 * intervals + 1)
-        sigma = bend.speed(t)
+        t, kappa_t, kappa_s_t, sigma = bend.curvature_on_grid(2 * intervals + 1)
         # Arc length by Simpson on pairs of intervals, scaled to the exact length.
         pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (math.pi / len(sigma))
         s_t = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2),
@@ -149,6 +148,8 @@ class _ArcPlanner:
         # The vertical lines solved so far by Ruckig ({arguments: rows}): the probes solve the
         # lines to the end states they try, the chosen one is solved again for the motion.
         self._lines = {}
+        # The speeds the lines aim at ({(s_from, s_to, cap): speed}), for the same reason.
+        self._cap_speeds = {}
         # The lengths [m] of the G2 transitions at T1 and T2 the probes look ahead over.
         self._transitions = {}
 
@@ -167,8 +168,17 @@ class _ArcPlanner:
         # Exact keys: -0.0 (a mirrored rest acceleration) is not 0.0 to Ruckig's last bit.
         key = tuple(float(value).hex() for value in (*start, *end, s_start, s_end)), speed_cap
         if key not in self._lines:
-            self._lines[key] = _line_rows(start, end, self.limits, speed_cap, s_start, s_end)
+            self._lines[key] = _ruckig_rows(
+                start, end, self._cap_speed(speed_cap, s_start, s_end),
+                *_line_limits(self.limits))
         return self._lines[key]
+
+    def _cap_speed(self, speed_cap, s_from, s_to):
+        """Return :func:`_line_speed` on [s_from, s_to], asking the cap once per stretch."""
+        key = s_from, s_to, speed_cap
+        if key not in self._cap_speeds:
+            self._cap_speeds[key] = _line_speed(self.limits, speed_cap, s_from, s_to)
+        return self._cap_speeds[key]
 
     def end_speed(self, clearance, at_start, speed_cap):
         """Return the speed aimed at at T1 (``at_start``) or T2 (see :meth:`end_state`)."""
@@ -181,9 +191,9 @@ class _ArcPlanner:
                     _reach_speed(clearance, limits.max_accel * _ACCEL_MARGIN,
                                  limits.max_jerk * _JERK_MARGIN) * (1.0 - 1e-3))
         if speed_cap is not None and clearance > 0.0:
+            # The ceiling is below the speed limit's margin already: only the cap counts here.
             start = 0.0 if at_start else self.path.length - clearance
-            speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
-                speed_cap, np.linspace(start, start + clearance, _LIMIT_SAMPLES)))))
+            speed = min(speed, self._cap_speed(speed_cap, start, start + clearance))
         return speed
 
     def end_state(self, speed, clearance, at_start, speed_cap):
