@@ -70,6 +70,31 @@ def test_refined_peaks_find_a_parabolas_vertex_between_samples():
     # Across a bound of the pieces the three samples are not one smooth function: no vertex.
     motion_module._refined_peaks(t, np.array([0, 0, 1, 1, 2, 2]), norms, peaks)
     assert peaks[0] == values.max()
+    # Uneven gaps (a sample just off a bound beside a grid sample): no extrapolation from them.
+    uneven = np.array([0.0, 1.0, 1.01])
+    steep = np.vstack([1.0 - (uneven - 1.3) ** 2] * 3)
+    motion_module._refined_peaks(uneven, np.zeros(3, dtype=np.int64), steep, peaks)
+    assert np.all(peaks == steep[:, 2])
+
+
+def test_curvature_profile_samples_follow_its_pieces_not_its_duration():
+    path = plan_path((0.0, 0.0, -0.8), (0.3, 0.0, -0.75), join='paper')
+    limits = CartesianLimits()
+    fast = time_motion(path, limits, profile='curvature')
+    slow = time_motion(path, CartesianLimits(max_speed=0.05, max_accel=0.5, max_jerk=50.0),
+                       profile='curvature')
+    assert slow.duration > 10.0 * fast.duration
+    fast_count, slow_count = (motion.sampled_norms()[0].size for motion in (fast, slow))
+    # The same path's law has the same pieces (but its lines' Ruckig pieces may differ).
+    assert abs(slow_count - fast_count) < 0.2 * fast_count
+    # And its peaks match a check every 10 us of the slow motion.
+    t = np.linspace(0.0, slow.duration, int(slow.duration / 1e-5) + 1)
+    _, velocity, acceleration, jerk = slow.state_at(t)
+    metrics = slow.metrics()
+    for key, vectors in (('peak_speed', velocity), ('peak_accel', acceleration),
+                         ('peak_jerk', jerk)):
+        dense = float(np.linalg.norm(vectors, axis=1).max())
+        assert dense * (1.0 - 1e-6) <= metrics[key] <= dense * (1.0 + 1e-4), key
 
 
 def test_sampled_peaks_are_not_below_a_dense_check_of_the_motion(timed):
