@@ -107,3 +107,19 @@ def test_sampled_peaks_are_not_below_a_dense_check_of_the_motion(timed):
         dense = float(np.linalg.norm(vectors, axis=1).max())
         assert metrics[key] >= dense * (1.0 - 1e-5), key
         assert metrics[key] <= dense * (1.0 + 1e-4), key
+
+
+def test_times_at_lengths_invert_the_law(timed):
+    law = timed.law
+    # Lengths all along the path, the piece bounds' own among them, and both ends.
+    lengths = np.concatenate((np.linspace(0.0, timed.path.length, 101), law.s0[::7]))
+    times = np.empty(lengths.size)
+    motion_module._times_at_lengths(law.times, law.s0, law.v0, law.a0, law.jerk, lengths, times)
+    np.testing.assert_allclose(law.state(times)[0], lengths, rtol=0, atol=1e-12)
+    # The first time each length is reached: just before it the law is still short of it.
+    before = law.state(np.maximum(times - 1e-7, 0.0))[0]
+    assert np.all((before < lengths) | (lengths <= 0.0))
+    plain = np.empty(lengths.size)
+    motion_module._times_at_lengths.py_func(law.times, law.s0, law.v0, law.a0, law.jerk,
+                                            lengths, plain)
+    np.testing.assert_allclose(plain, times, rtol=0, atol=1e-15)

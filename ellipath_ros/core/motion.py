@@ -434,10 +434,17 @@ class TimedMotion:
         if path.join == 'g2':
             marks = np.concatenate((marks, path.segment_ends[1] + bend.s_from_t(
                 np.array([math.pi - bend.span_1, bend.span_2]))))
+        law = self.law
+        if isinstance(law, _JerkPieces):
+            # Each mark's piece, then the root of that piece's cubic s(t) (one compiled pass).
+            times = np.empty(marks.size)
+            _times_at_lengths(law.times, law.s0, law.v0, law.a0, law.jerk,
+                              np.ascontiguousarray(marks, dtype=float), times)
+            return np.minimum(times * self.time_scale, self.duration)
         # s(t) is increasing: interpolate each mark between the lengths at the law's piece
         # bounds (or samples), then refine by Newton steps on the law (where s' = 0 the
         # interpolation stays).
-        bound_times, bound_lengths = self.law.bounds()
+        bound_times, bound_lengths = law.bounds()
         t = np.interp(marks, bound_lengths, bound_times * self.time_scale)
         for _ in range(3):
             s, v, _, _ = self.path_state(t)
@@ -538,6 +545,37 @@ def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
             states[3, row, axis] = (jerk * tangent[axis, row]
                                     + (3.0 * speed * accel) * curvature[axis, row]
                                     + (speed ** 3.0) * rate[axis, row])
+
+
+@kernel
+def _times_at_lengths(times, s0, v0, a0, jerk, lengths, out):
+    """
+    Fill ``out`` (N,) with the first law times [s] at which s reaches ``lengths`` (N,).
+
+    The law is :class:`_JerkPieces`' arrays (s never falls); each length is found
+    in the last piece starting at or before it, as the root of the piece's cubic
+    by Newton steps kept inside a bisection bracket (to 1e-15 of the piece).
+    """
+    last = jerk.size - 1
+    for row in range(lengths.size):
+        target = lengths[row]
+        index = min(max(np.searchsorted(s0, target, side='right') - 1, 0), last)
+        start, s, v, a, j = times[index], s0[index], v0[index], a0[index], jerk[index]
+        low, high = 0.0, times[index + 1] - start
+        x = 0.5 * high
+        for _ in range(100):
+            error = s + x * (v + x * (a / 2.0 + x * j / 6.0)) - target
+            if error > 0.0:
+                high = x
+            else:
+                low = x
+            if high - low <= 1e-15 * (times[index + 1] - start) or error == 0.0:
+                break
+            slope = v + x * (a + x * j / 2.0)
+            x = x - error / slope if slope > 0.0 else 0.5 * (low + high)
+            if not low < x < high:
+                x = 0.5 * (low + high)
+        out[row] = start + x
 
 
 def _sample_times(duration, period):
