@@ -15,6 +15,7 @@
 """The timed motion's compiled sampling: states and norms, peaks between samples."""
 
 from ellipath_ros.core import motion as motion_module
+from ellipath_ros.core import optimal_profile
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.timing import time_motion
@@ -24,7 +25,7 @@ import pytest
 
 @pytest.fixture(scope='module', params=['g2', 'paper'])
 def timed(request):
-    """A time-optimal leg, fresh (not sampled yet)."""
+    """Return a time-optimal leg, fresh (not sampled yet)."""
     path = plan_path((0.1, 0.05, -0.8), (-0.2, 0.1, -0.75), 0.025, 0.02, join=request.param)
     return time_motion(path, CartesianLimits())
 
@@ -123,3 +124,36 @@ def test_times_at_lengths_invert_the_law(timed):
     motion_module._times_at_lengths.py_func(law.times, law.s0, law.v0, law.a0, law.jerk,
                                             lengths, plain)
     np.testing.assert_allclose(plain, times, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize('join', ['g2', 'paper'])
+def test_arc_planner_tables_are_simpsons_lengths_and_numpys_interpolation(join):
+    path = plan_path((0.1, 0.05, -0.8), (-0.2, 0.1, -0.75), 0.025, 0.02, join=join)
+    limits = CartesianLimits()
+    planner = optimal_profile._ArcPlanner(path, limits, None)
+    intervals = planner.grid.size - 1
+    kappa_t, kappa_s_t, sigma = path.bend.curvature_on_grid(2 * intervals + 1)[1:]
+    # Independently, in NumPy: Simpson on pairs of steps (pi / (2 K + 1) wide, as the table
+    # counts them), linear at each pair's middle, scaled to the arc's length.
+    pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (np.pi / sigma.size)
+    even = np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0))
+    lengths = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2), even)
+    lengths *= planner.length / lengths[-1]
+    grid = np.linspace(0.0, planner.length, intervals + 1)
+    kappa = np.maximum(np.interp(grid, lengths, kappa_t), 0.0)
+    kappa_s = np.interp(grid, lengths, kappa_s_t)
+    found, found_s = np.empty(grid.size), np.empty(grid.size)
+    optimal_profile._uniform_curvature(sigma, kappa_t, kappa_s_t, grid, found, found_s)
+    np.testing.assert_allclose(found, kappa, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(found_s, kappa_s, rtol=1e-13, atol=1e-10 * np.abs(kappa_s).max())
+    plain, plain_s = np.empty(grid.size), np.empty(grid.size)
+    optimal_profile._uniform_curvature.py_func(sigma, kappa_t, kappa_s_t, grid, plain, plain_s)
+    assert np.array_equal(plain, found) and np.array_equal(plain_s, found_s)
+    # The ceiling: speed limit, sqrt(a / kappa) and (j / hypot(kappa**2, kappa_s))**(1/3).
+    accel = optimal_profile._CEILING_SHARE * limits.max_accel * optimal_profile._ACCEL_MARGIN
+    jerk = optimal_profile._CEILING_SHARE * limits.max_jerk * optimal_profile._JERK_MARGIN
+    with np.errstate(divide='ignore'):
+        ceiling = np.minimum.reduce([
+            np.full(grid.size, limits.max_speed * optimal_profile._SPEED_MARGIN),
+            np.sqrt(accel / kappa), (jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
+    np.testing.assert_allclose(planner.ceiling, ceiling, rtol=1e-13)
