@@ -363,18 +363,24 @@ class TimedMotion:
             [m/s**3]), each of shape (N,).
 
         """
-        if isinstance(self.law, _Sequence):
+        by_pieces = isinstance(self.law, _Sequence)
+        if by_pieces:
             t = np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale, self.duration)
         else:
-            t = _check_times(self, max(_CHECK_PERIOD, self.duration / _METRICS_SAMPLES))
+            t = _grid_times(self)
         s, states, norms, peaks = _sampled(self, t)
         object.__setattr__(self, '_peaks', peaks)
-        object.__setattr__(self, '_states', (t, *states))
+        if not by_pieces:
+            object.__setattr__(self, '_states', (t, *states))
         return (s, *norms)
 
     def sampled_states(self):
         """
-        Return the samples of :meth:`sampled_norms` as vectors.
+        Return the motion sampled every ``_CHECK_PERIOD``, as vectors.
+
+        The samples of :meth:`sampled_norms` where it takes them on that grid
+        (the time-optimal profile); the curvature profile's are taken when first
+        asked for (its knot search reads this grid).
 
         Returns
         -------
@@ -386,7 +392,11 @@ class TimedMotion:
 
         """
         if self._states is None:
-            self.sampled_norms()
+            if isinstance(self.law, _Sequence):
+                t = _grid_times(self)
+                object.__setattr__(self, '_states', (t, *_sampled(self, t)[1]))
+            else:
+                self.sampled_norms()
         return self._states
 
     def jerk_steps(self):
@@ -576,6 +586,11 @@ def _times_at_lengths(times, s0, v0, a0, jerk, lengths, out):
             if not low < x < high:
                 x = 0.5 * (low + high)
         out[row] = start + x
+
+
+def _grid_times(motion):
+    """Return the default grid of ``motion``: :func:`_check_times` every ``_CHECK_PERIOD``."""
+    return _check_times(motion, max(_CHECK_PERIOD, motion.duration / _METRICS_SAMPLES))
 
 
 def _sample_times(duration, period):
