@@ -158,3 +158,17 @@ def test_table_and_lookup_kernels_equal_their_python_forms():
     geometry._curvature_rows.py_func(bend._bend, t, kappa, rate)
     np.testing.assert_allclose(bend.curvature_and_rate(t), (kappa, rate), rtol=1e-12,
                                atol=1e-12)
+
+
+def test_curvature_grid_gives_the_curvature_and_the_speed_of_one_evaluation():
+    bend = plan_path((0.0, 0.0, -0.8), (0.3, 0.1, -0.75), 0.03, 0.02, join='g2').bend
+    t, kappa, rate, speed = bend.curvature_on_grid(1025)
+    np.testing.assert_allclose(t, np.linspace(math.pi, 0.0, 1025), rtol=0, atol=0)
+    # The grid's speed is the curve's |dQ/dt| from its components (an independent formula).
+    x1, y1 = bend.components(t)[1]
+    np.testing.assert_allclose(speed, np.hypot(x1, y1), rtol=1e-14)
+    np.testing.assert_allclose((kappa, rate), bend.curvature_and_rate(t), rtol=1e-14,
+                               atol=1e-12)
+    plain = np.empty((3, t.size))
+    geometry._grid_rows.py_func(bend._bend, t.copy(), *plain)
+    np.testing.assert_allclose(plain, (kappa, rate, speed), rtol=1e-13, atol=1e-12)

@@ -52,7 +52,7 @@ from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
 from .geometry import EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
-from .motion import _pieces_law, _Sequence, TimedMotion
+from .motion import _piece_sample_times, _pieces_law, _Sequence, TimedMotion
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
 
 # Where a ramp may end, in shares of the arc's parameter range, after the nodes.
@@ -175,6 +175,15 @@ class _CurvatureArcLaw:
         out = np.empty((5, t.size))
         _law_states(t, *self._hermite_table, self.arc.a, self.arc.b, self.rate, out)
         return out
+
+    def sample_times(self, count):
+        """
+        Return sorted times [s]: ``count`` even steps across each panel of the states' table.
+
+        The panels follow the law's own scale (even steps of theta, narrower near the
+        tightest points), whatever its duration; within one the law is smooth.
+        """
+        return _piece_sample_times(self._hermite_table[0], count)
 
     def theta(self, t):
         """Return theta at times ``t`` (N,) from the start of this law."""

@@ -339,15 +339,23 @@ def _curvature_at(l_, h, k, span_1, span_2, t):
     centre), s growing from T1 (ds/dt = -|P'|).
     """
     _, _, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t)
+    kappa, rate, _ = _curvature_of(x1, y1, x2, y2, x3, y3)
+    return kappa, rate
+
+
+@kernel
+def _curvature_of(x1, y1, x2, y2, x3, y3):
+    """Return kappa [1/m], dkappa/ds [1/m**2] and |dQ/dt| [m/rad] from the t-derivatives."""
+    speed = math.sqrt(x1 * x1 + y1 * y1)
     # One division: products with 1 / sigma (rounding apart, the same quotients).
-    inverse = 1.0 / math.sqrt(x1 * x1 + y1 * y1)
+    inverse = 1.0 / speed
     inverse_3 = inverse * inverse * inverse
     cross = x1 * y2 - y1 * x2
     cross_t = x1 * y3 - y1 * x3
     sigma_t = (x1 * x2 + y1 * y2) * inverse
     kappa = cross * inverse_3
     kappa_t = (cross_t - 3.0 * cross * sigma_t * inverse) * inverse_3
-    return kappa, -kappa_t * inverse
+    return kappa, -kappa_t * inverse, speed
 
 
 @kernel
@@ -384,6 +392,15 @@ def _curvature_rows(bend, t, kappa, rate):
     l_, h, k, span_1, span_2 = bend
     for row in range(t.size):
         kappa[row], rate[row] = _curvature_at(l_, h, k, span_1, span_2, t[row])
+
+
+@kernel
+def _grid_rows(bend, t, kappa, rate, speed):
+    """Fill ``kappa``, ``rate`` and ``speed`` (N,) at ``t`` (N,): one evaluation of the bend."""
+    l_, h, k, span_1, span_2 = bend
+    for row in range(t.size):
+        _, _, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t[row])
+        kappa[row], rate[row], speed[row] = _curvature_of(x1, y1, x2, y2, x3, y3)
 
 
 @kernel
@@ -554,7 +571,10 @@ class _ParametricArc:
 
     def curvature_on_grid(self, samples):
         """
-        Return t at ``samples`` even steps from pi to 0, kappa and dkappa/ds there, each (N,).
+        Return t at ``samples`` even steps from pi to 0, kappa, dkappa/ds and |dQ/dt| there.
+
+        Each (N,); |dQ/dt| [m/rad] is the curve's speed (:meth:`speed`), from the same
+        evaluation of the curve.
 
         The dense grid of ``_DENSE_SAMPLES`` is computed once per arc and shared
         (its tightest point and the time-optimal scan's table both use it); the
@@ -570,11 +590,13 @@ class _ParametricArc:
         return self._curvature_grid(_DENSE_SAMPLES)
 
     def _curvature_grid(self, samples):
-        """Return (t, kappa, dkappa/ds) on ``samples`` even steps of t, read-only."""
+        """Return (t, kappa, dkappa/ds, |dQ/dt|) on ``samples`` even steps of t, read-only."""
         # A copy of the shared grid: the kernels take writable arrays (one compiled form).
         t = _dense_grid().copy() if samples == _DENSE_SAMPLES else np.linspace(
             math.pi, 0.0, samples)
-        grid = (t,) + tuple(self.curvature_and_rate(t))
+        kappa, rate, speed = np.empty(t.size), np.empty(t.size), np.empty(t.size)
+        _grid_rows(self._bend, t, kappa, rate, speed)
+        grid = t, kappa, rate, speed
         for values in grid:
             values.setflags(write=False)
         return grid
@@ -765,7 +787,7 @@ class BlendedArc(_ParametricArc):
     @functools.cached_property
     def _tightest(self):
         """(t, kappa) of the largest curvature on a dense grid, computed once."""
-        t, kappa, _ = self.curvature_on_grid(_DENSE_SAMPLES)
+        t, kappa = self.curvature_on_grid(_DENSE_SAMPLES)[:2]
         index = int(np.argmax(kappa))
         return float(t[index]), float(kappa[index])
 

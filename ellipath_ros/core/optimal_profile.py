@@ -37,10 +37,10 @@ from .arc_scan import (
     _table_at, _time_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
-    _constant_limits, _line_rows, _reach_speed, _ruckig_rows, _straight_motion)
+    _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows, _straight_motion)
 
 # Grid of the curvature tables along the arc (intervals; more for very tight bends).
 _TABLE_INTERVALS = 2048
@@ -115,17 +115,10 @@ class _ArcPlanner:
         # Cells no longer than the smallest radius of curvature (the arc may be a needle).
         intervals = int(min(_TABLE_INTERVALS_MAX, max(_TABLE_INTERVALS, 2 ** math.ceil(
             math.log2(self.length / bend.min_radius)))))
-        t, kappa_t, kappa_s_t = bend.curvature_on_grid(2 * intervals + 1)
-        sigma = bend.speed(t)
-        # Arc length by Simpson on pairs of intervals, scaled to the exact length.
-        pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (math.pi / len(sigma))
-        s_t = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2),
-                        np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0)))
-        s_t *= self.length / s_t[-1]
+        kappa_t, kappa_s_t, sigma = bend.curvature_on_grid(2 * intervals + 1)[1:]
         grid = np.linspace(0.0, self.length, intervals + 1)
-        # The bend never turns the other way; a G2 end's 0 may round to -1e-14.
-        kappa = np.maximum(np.interp(grid, s_t, kappa_t), 0.0)
-        kappa_s = np.interp(grid, s_t, kappa_s_t)
+        kappa, kappa_s = np.empty(grid.size), np.empty(grid.size)
+        _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s)
         # The speed cap as stairs of _CAP_STAIR cells, each at the lowest value it spans: the
         # scans level off on a stair and cruise, and two scans cruising on one stair meet.
         cells = np.full(intervals, math.inf)
@@ -140,8 +133,10 @@ class _ArcPlanner:
         self.forward = _Scanner(table, cell, limits, budget)
         self.backward = _Scanner(_backwards(table), cell, limits, budget)
         # The ceiling places the speed valleys and their speeds.
-        cap = np.minimum(np.concatenate((cells[:1], cells)), np.concatenate((cells, cells[-1:])))
-        self.ceiling = self._cruise_speed(kappa, kappa_s, cap, _CEILING_SHARE)
+        self.ceiling = np.empty(grid.size)
+        _cruise_speeds(kappa, kappa_s, cells, limits.max_speed * _SPEED_MARGIN,
+                       _CEILING_SHARE * limits.max_accel * _ACCEL_MARGIN,
+                       _CEILING_SHARE * limits.max_jerk * _JERK_MARGIN, self.ceiling)
         # A G2 join's ends have curvature 0 exactly (the table holds rounding there).
         self.kappa_end = ((0.0, 0.0) if path.join == 'g2'
                           else (float(kappa[0]), float(kappa[-1])))
@@ -149,26 +144,27 @@ class _ArcPlanner:
         # The vertical lines solved so far by Ruckig ({arguments: rows}): the probes solve the
         # lines to the end states they try, the chosen one is solved again for the motion.
         self._lines = {}
+        # The speeds the lines aim at ({(s_from, s_to, cap): speed}), for the same reason.
+        self._cap_speeds = {}
         # The lengths [m] of the G2 transitions at T1 and T2 the probes look ahead over.
         self._transitions = {}
-
-    def _cruise_speed(self, kappa, kappa_s, cap, share):
-        """Return the speed at which s'' = 0 uses ``share`` of the accel and jerk limits."""
-        limits = self.limits
-        accel, jerk = limits.max_accel * _ACCEL_MARGIN, limits.max_jerk * _JERK_MARGIN
-        with np.errstate(divide='ignore'):
-            return np.minimum.reduce([
-                np.full(kappa.shape, limits.max_speed * _SPEED_MARGIN), cap,
-                np.sqrt(share * accel / kappa),
-                (share * jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
 
     def line_rows(self, start, end, speed_cap, s_start, s_end):
         """Return :func:`_line_rows` of a vertical line on the planner's limits, solved once."""
         # Exact keys: -0.0 (a mirrored rest acceleration) is not 0.0 to Ruckig's last bit.
         key = tuple(float(value).hex() for value in (*start, *end, s_start, s_end)), speed_cap
         if key not in self._lines:
-            self._lines[key] = _line_rows(start, end, self.limits, speed_cap, s_start, s_end)
+            self._lines[key] = _ruckig_rows(
+                start, end, self._cap_speed(speed_cap, s_start, s_end),
+                *_line_limits(self.limits))
         return self._lines[key]
+
+    def _cap_speed(self, speed_cap, s_from, s_to):
+        """Return :func:`_line_speed` on [s_from, s_to], asking the cap once per stretch."""
+        key = s_from, s_to, speed_cap
+        if key not in self._cap_speeds:
+            self._cap_speeds[key] = _line_speed(self.limits, speed_cap, s_from, s_to)
+        return self._cap_speeds[key]
 
     def end_speed(self, clearance, at_start, speed_cap):
         """Return the speed aimed at at T1 (``at_start``) or T2 (see :meth:`end_state`)."""
@@ -181,9 +177,9 @@ class _ArcPlanner:
                     _reach_speed(clearance, limits.max_accel * _ACCEL_MARGIN,
                                  limits.max_jerk * _JERK_MARGIN) * (1.0 - 1e-3))
         if speed_cap is not None and clearance > 0.0:
+            # The ceiling is below the speed limit's margin already: only the cap counts here.
             start = 0.0 if at_start else self.path.length - clearance
-            speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
-                speed_cap, np.linspace(start, start + clearance, _LIMIT_SAMPLES)))))
+            speed = min(speed, self._cap_speed(speed_cap, start, start + clearance))
         return speed
 
     def end_state(self, speed, clearance, at_start, speed_cap):
@@ -471,6 +467,67 @@ class _ArcPlanner:
                 speeds[index + 1] *= 0.7
         rows = [row for piece in pieces for row in piece]
         return rows, (speeds[0], 0.0), (speeds[-1], 0.0)
+
+
+@kernel
+def _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s):
+    """
+    Fill ``kappa`` and ``kappa_s`` (M,) at the arc lengths ``grid`` (M,), even steps from 0.
+
+    ``sigma``, ``kappa_t`` and ``kappa_s_t`` (2 K + 1,) are the curve's speed
+    |dQ/dt|, curvature and its rate at even steps of t from pi to 0: the arc
+    length there by Simpson's rule on pairs of steps (linear between a pair's
+    ends at its middle), scaled to end at ``grid[-1]``, then the curvature and
+    its rate interpolated linearly at ``grid`` (as ``numpy.interp``). The bend
+    never turns the other way: a G2 end's 0 that rounds to -1e-14 is 0.
+    """
+    count = sigma.size
+    lengths = np.empty(count)
+    lengths[0] = 0.0
+    total, width = 0.0, math.pi / count
+    for pair in range(count // 2):
+        index = 2 * pair
+        total += (sigma[index] + 4.0 * sigma[index + 1] + sigma[index + 2]) * width
+        lengths[index + 2] = total / 3.0 * 2.0
+        lengths[index + 1] = (lengths[index + 2] - lengths[index]) / 2.0 + lengths[index]
+    scale = grid[grid.size - 1] / lengths[count - 1]
+    for index in range(count):
+        lengths[index] *= scale
+    below = 0
+    for row in range(grid.size):
+        here = grid[row]
+        while below < count - 2 and lengths[below + 1] <= here:
+            below += 1
+        if here >= lengths[count - 1]:
+            kappa[row], kappa_s[row] = max(kappa_t[count - 1], 0.0), kappa_s_t[count - 1]
+            continue
+        step = lengths[below + 1] - lengths[below]
+        offset = here - lengths[below]
+        kappa[row] = max((kappa_t[below + 1] - kappa_t[below]) / step * offset
+                         + kappa_t[below], 0.0)
+        kappa_s[row] = ((kappa_s_t[below + 1] - kappa_s_t[below]) / step * offset
+                        + kappa_s_t[below])
+
+
+@kernel
+def _cruise_speeds(kappa, kappa_s, cells, speed, accel, jerk, out):
+    """
+    Fill ``out`` (M,) with the speed at which s'' = 0 keeps ``accel`` and ``jerk``.
+
+    At each of the M grid points of ``kappa`` and ``kappa_s`` (M,): the
+    smallest of ``speed``, the cap of the cells (M - 1,) on both sides,
+    sqrt(accel / kappa) and (jerk / hypot(kappa**2, kappa_s))**(1/3) (no bound
+    where the curvature, or both terms, are 0).
+    """
+    last = cells.size - 1
+    for row in range(kappa.size):
+        ceiling = min(speed, cells[max(row - 1, 0)], cells[min(row, last)])
+        if kappa[row] > 0.0:
+            ceiling = min(ceiling, math.sqrt(accel / kappa[row]))
+        rate = math.hypot(kappa[row] ** 2, kappa_s[row])
+        if rate > 0.0:
+            ceiling = min(ceiling, (jerk / rate) ** (1.0 / 3.0))
+        out[row] = ceiling
 
 
 def _optimal_motion(path, limits, speed_cap):

@@ -101,12 +101,22 @@ def _line_rows(start, target, limits, speed_cap, s_from, s_to):
 
 def _line_solution(start, target, limits, speed_cap, s_from, s_to):
     """Return (rows, None) as :func:`_line_rows` does, or (None, why) with Ruckig's text."""
+    return _ruckig_solution(start, target, _line_speed(limits, speed_cap, s_from, s_to),
+                            *_line_limits(limits))
+
+
+def _line_speed(limits, speed_cap, s_from, s_to):
+    """Return the speed [m/s] a line's pieces aim at on [s_from, s_to] (limit and cap)."""
     speed = limits.max_speed * _SPEED_MARGIN
     if speed_cap is not None and s_to > s_from:
         speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
             speed_cap, np.linspace(s_from, s_to, _LIMIT_SAMPLES)))))
-    return _ruckig_solution(start, target, speed, limits.max_accel * _ACCEL_MARGIN,
-                            limits.max_jerk * _JERK_MARGIN)
+    return speed
+
+
+def _line_limits(limits):
+    """Return the acceleration [m/s**2] and jerk [m/s**3] a line's pieces aim at."""
+    return limits.max_accel * _ACCEL_MARGIN, limits.max_jerk * _JERK_MARGIN
 
 
 def _straight_motion(path, limits, speed_cap, profile):

@@ -33,7 +33,7 @@ from .curvature_profile import _curvature_motion
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
 from .limits import _cap_values, CartesianLimits
-from .motion import _check_times, _norms, PROFILES
+from .motion import _check_times, _sampled, PROFILES
 from .optimal_profile import _optimal_motion
 
 # When the final limit check finds a limit broken, it measures again with samples this far
@@ -50,27 +50,34 @@ def _within_limits(motion, limits, speed_cap):
     Return ``motion``, slowed down uniformly if sampling finds a limit broken.
 
     The motion is sampled as its metrics are (:meth:`TimedMotion.sampled_norms`,
-    which keeps the peaks for them). A construction that breaks a limit has
-    missed something sharp (a bend tighter than its tables): the factor is then
-    measured on a grid of period ``_SAFETY_CHECK_PERIOD / _SAFETY_REFINE`` (at
-    most ``_SAFETY_CHECK_SAMPLES * _SAFETY_REFINE`` samples) and given
+    which keeps the peaks for them, each refined between its samples). A
+    construction that breaks a limit has missed something sharp (a bend
+    tighter than its tables): the factor is then measured on a grid of period
+    ``_SAFETY_CHECK_PERIOD / _SAFETY_REFINE`` (at most
+    ``_SAFETY_CHECK_SAMPLES * _SAFETY_REFINE`` samples) and given
     ``_SAFETY_SLACK`` on top, for what falls between even those samples.
     """
-    factor = _excess(motion.sampled_norms(), limits, speed_cap)
+    s, speed = motion.sampled_norms()[:2]
+    factor = _excess(s, speed, motion._peaks, limits, speed_cap)
     if factor <= 1.0:
         return motion
     period = max(_SAFETY_CHECK_PERIOD, motion.duration / _SAFETY_CHECK_SAMPLES)
-    factor = max(factor, _excess(_norms(motion, _check_times(motion, period / _SAFETY_REFINE)),
-                                 limits, speed_cap))
+    s, _, norms, peaks = _sampled(motion, _check_times(motion, period / _SAFETY_REFINE))
+    factor = max(factor, _excess(s, norms[0], peaks, limits, speed_cap))
     return motion.scaled(factor * (1.0 + _SAFETY_SLACK))
 
 
-def _excess(norms, limits, speed_cap):
-    """Return the uniform slow-down that brings sampled norms within the limits (>= 0)."""
-    s, speed, accel, jerk = norms
-    factor = max(float(speed.max()) / limits.max_speed,
-                 math.sqrt(float(accel.max()) / limits.max_accel),
-                 float(jerk.max() / limits.max_jerk) ** (1.0 / 3.0))
+def _excess(s, speed, peaks, limits, speed_cap):
+    """
+    Return the uniform slow-down that brings the motion within the limits (>= 0).
+
+    ``peaks`` are the largest speed, acceleration and jerk norms (three
+    floats); the speed cap is read at the samples' path lengths ``s`` and
+    speeds ``speed`` (N,).
+    """
+    peak_speed, peak_accel, peak_jerk = peaks
+    factor = max(peak_speed / limits.max_speed, math.sqrt(peak_accel / limits.max_accel),
+                 (peak_jerk / limits.max_jerk) ** (1.0 / 3.0))
     if speed_cap is not None:
         factor = max(factor, float(np.max(speed / _cap_values(speed_cap, s))))
     return factor

@@ -1,0 +1,159 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The timed motion's compiled sampling: states and norms, peaks between samples."""
+
+from ellipath_ros.core import motion as motion_module
+from ellipath_ros.core import optimal_profile
+from ellipath_ros.core.geometry import plan_path
+from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.timing import time_motion
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope='module', params=['g2', 'paper'])
+def timed(request):
+    """Return a time-optimal leg, fresh (not sampled yet)."""
+    path = plan_path((0.1, 0.05, -0.8), (-0.2, 0.1, -0.75), 0.025, 0.02, join=request.param)
+    return time_motion(path, CartesianLimits())
+
+
+def test_state_rows_are_the_paths_rows_times_the_law(timed):
+    t = np.linspace(0.0, timed.duration, 777)
+    s, v, a, j = timed.path_state(t)
+    states, norms = np.empty((4, t.size, 3)), np.empty((3, t.size))
+    motion_module._state_rows(s, v, a, j, timed.path._frame, *timed.path.bend._table, states,
+                              norms)
+    # Independently: the path's rows (position, unit tangent, d2p/ds2, d3p/ds3) by the chain
+    # rule, in NumPy.
+    position, tangent, curvature, rate = (rows.T for rows in timed.path.rows_at_lengths(s))
+    velocity = v[:, None] * tangent
+    acceleration = a[:, None] * tangent + (v ** 2)[:, None] * curvature
+    jerk = (j[:, None] * tangent + (3.0 * v * a)[:, None] * curvature
+            + (v ** 3)[:, None] * rate)
+    for found, expected in zip(states, (position, velocity, acceleration, jerk)):
+        np.testing.assert_allclose(found, expected, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(norms, np.linalg.norm([velocity, acceleration, jerk], axis=2),
+                               rtol=1e-12, atol=1e-9)
+    plain_states, plain_norms = np.empty_like(states), np.empty_like(norms)
+    motion_module._state_rows.py_func(s, v, a, j, timed.path._frame, *timed.path.bend._table,
+                                      plain_states, plain_norms)
+    np.testing.assert_allclose(plain_states, states, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(plain_norms, norms, rtol=1e-13, atol=1e-12)
+
+
+def test_refined_peaks_find_a_parabolas_vertex_between_samples():
+    # Two pieces; in the first, a parabola whose vertex (value 5) lies between samples.
+    t = np.array([0.0, 1.0, 2.0, 3.0, 3.0, 4.0])
+    pieces = np.array([0, 0, 0, 0, 1, 1])
+    values = 5.0 - (t - 1.4) ** 2
+    # In the second piece a sample beside the bound is the largest: no vertex across it.
+    values[4:] = (4.0, 4.5)
+    norms = np.vstack((values, values, np.full(t.size, 2.0)))
+    peaks = np.empty(3)
+    motion_module._refined_peaks(t, pieces, norms, peaks)
+    np.testing.assert_allclose(peaks, (5.0, 5.0, 2.0), rtol=1e-14)
+    plain = np.empty(3)
+    motion_module._refined_peaks.py_func(t, pieces, norms, plain)
+    assert np.array_equal(plain, peaks)
+    # Across a bound of the pieces the three samples are not one smooth function: no vertex.
+    motion_module._refined_peaks(t, np.array([0, 0, 1, 1, 2, 2]), norms, peaks)
+    assert peaks[0] == values.max()
+    # Uneven gaps (a sample just off a bound beside a grid sample): no extrapolation from them.
+    uneven = np.array([0.0, 1.0, 1.01])
+    steep = np.vstack([1.0 - (uneven - 1.3) ** 2] * 3)
+    motion_module._refined_peaks(uneven, np.zeros(3, dtype=np.int64), steep, peaks)
+    assert np.all(peaks == steep[:, 2])
+
+
+def test_curvature_profile_samples_follow_its_pieces_not_its_duration():
+    path = plan_path((0.0, 0.0, -0.8), (0.3, 0.0, -0.75), join='paper')
+    limits = CartesianLimits()
+    fast = time_motion(path, limits, profile='curvature')
+    slow = time_motion(path, CartesianLimits(max_speed=0.05, max_accel=0.5, max_jerk=50.0),
+                       profile='curvature')
+    assert slow.duration > 10.0 * fast.duration
+    fast_count, slow_count = (motion.sampled_norms()[0].size for motion in (fast, slow))
+    # The same path's law has the same pieces (but its lines' Ruckig pieces may differ).
+    assert abs(slow_count - fast_count) < 0.2 * fast_count
+    # And its peaks match a check every 10 us of the slow motion.
+    t = np.linspace(0.0, slow.duration, int(slow.duration / 1e-5) + 1)
+    _, velocity, acceleration, jerk = slow.state_at(t)
+    metrics = slow.metrics()
+    for key, vectors in (('peak_speed', velocity), ('peak_accel', acceleration),
+                         ('peak_jerk', jerk)):
+        dense = float(np.linalg.norm(vectors, axis=1).max())
+        assert dense * (1.0 - 1e-6) <= metrics[key] <= dense * (1.0 + 1e-4), key
+
+
+def test_sampled_peaks_are_not_below_a_dense_check_of_the_motion(timed):
+    # The reported peaks (0.1 ms samples, refined) against a 2 MHz check of the same motion.
+    metrics = timed.metrics()
+    t = np.linspace(0.0, timed.duration, int(timed.duration / 5e-7) + 1)
+    _, velocity, acceleration, jerk = timed.state_at(t)
+    for key, vectors in (('peak_speed', velocity), ('peak_accel', acceleration),
+                         ('peak_jerk', jerk)):
+        dense = float(np.linalg.norm(vectors, axis=1).max())
+        assert metrics[key] >= dense * (1.0 - 1e-5), key
+        assert metrics[key] <= dense * (1.0 + 1e-4), key
+
+
+def test_times_at_lengths_invert_the_law(timed):
+    law = timed.law
+    # Lengths all along the path, the piece bounds' own among them, and both ends.
+    lengths = np.concatenate((np.linspace(0.0, timed.path.length, 101), law.s0[::7]))
+    times = np.empty(lengths.size)
+    motion_module._times_at_lengths(law.times, law.s0, law.v0, law.a0, law.jerk, lengths, times)
+    np.testing.assert_allclose(law.state(times)[0], lengths, rtol=0, atol=1e-12)
+    # The first time each length is reached: just before it the law is still short of it.
+    before = law.state(np.maximum(times - 1e-7, 0.0))[0]
+    assert np.all((before < lengths) | (lengths <= 0.0))
+    plain = np.empty(lengths.size)
+    motion_module._times_at_lengths.py_func(law.times, law.s0, law.v0, law.a0, law.jerk,
+                                            lengths, plain)
+    np.testing.assert_allclose(plain, times, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize('join', ['g2', 'paper'])
+def test_arc_planner_tables_are_simpsons_lengths_and_numpys_interpolation(join):
+    path = plan_path((0.1, 0.05, -0.8), (-0.2, 0.1, -0.75), 0.025, 0.02, join=join)
+    limits = CartesianLimits()
+    planner = optimal_profile._ArcPlanner(path, limits, None)
+    intervals = planner.grid.size - 1
+    kappa_t, kappa_s_t, sigma = path.bend.curvature_on_grid(2 * intervals + 1)[1:]
+    # Independently, in NumPy: Simpson on pairs of steps (pi / (2 K + 1) wide, as the table
+    # counts them), linear at each pair's middle, scaled to the arc's length.
+    pairs = (sigma[:-2:2] + 4.0 * sigma[1:-1:2] + sigma[2::2]) * (np.pi / sigma.size)
+    even = np.concatenate(([0.0], np.cumsum(pairs) / 3.0 * 2.0))
+    lengths = np.interp(np.arange(sigma.size), np.arange(0, sigma.size, 2), even)
+    lengths *= planner.length / lengths[-1]
+    grid = np.linspace(0.0, planner.length, intervals + 1)
+    kappa = np.maximum(np.interp(grid, lengths, kappa_t), 0.0)
+    kappa_s = np.interp(grid, lengths, kappa_s_t)
+    found, found_s = np.empty(grid.size), np.empty(grid.size)
+    optimal_profile._uniform_curvature(sigma, kappa_t, kappa_s_t, grid, found, found_s)
+    np.testing.assert_allclose(found, kappa, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(found_s, kappa_s, rtol=1e-13, atol=1e-10 * np.abs(kappa_s).max())
+    plain, plain_s = np.empty(grid.size), np.empty(grid.size)
+    optimal_profile._uniform_curvature.py_func(sigma, kappa_t, kappa_s_t, grid, plain, plain_s)
+    assert np.array_equal(plain, found) and np.array_equal(plain_s, found_s)
+    # The ceiling: speed limit, sqrt(a / kappa) and (j / hypot(kappa**2, kappa_s))**(1/3).
+    accel = optimal_profile._CEILING_SHARE * limits.max_accel * optimal_profile._ACCEL_MARGIN
+    jerk = optimal_profile._CEILING_SHARE * limits.max_jerk * optimal_profile._JERK_MARGIN
+    with np.errstate(divide='ignore'):
+        ceiling = np.minimum.reduce([
+            np.full(grid.size, limits.max_speed * optimal_profile._SPEED_MARGIN),
+            np.sqrt(accel / kappa), (jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
+    np.testing.assert_allclose(planner.ceiling, ceiling, rtol=1e-13)
