@@ -42,7 +42,7 @@ from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _forward_row
 from ellipath_ros.core.kinematics import _kernel_geometry
-from ellipath_ros.core.kinematics import _tcp_row
+from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
@@ -74,17 +74,24 @@ _SAME_TIME = 1e-8
 # jerk [m/s^3], joint speed [rad/s] and acceleration [rad/s^2].
 EXECUTED_KEYS = ('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
                  'joint_peak_accel')
-# Samples per knot segment for the executed peaks (ends included: one more); each largest
-# sample is refined by a parabola through its neighbours. On 1,000 random legs the peaks so
-# found are within 0.01 % of a 1 MHz check.
-_EXECUTED_SAMPLES = 16
+# Samples per knot segment for the executed TCP peaks (ends included: one more); each largest
+# sample is refined by a parabola through its neighbours.
+_EXECUTED_SAMPLES = 12
 # Segments whose peak of a quantity is within this share of the trajectory's largest are
-# sampled again _EXECUTED_REFINE times as densely: 16 samples and a parabola can miss a sharp
-# peak by a few 0.1 % (0.25 % seen), the refined pass by ~1/64 of that. The reported peaks
-# must not be more than 0.1 % under a 1 MHz check; a peak missed by less than this share
-# is still in a selected segment.
+# searched for that quantity's maximum: the base samples and their parabola can miss a
+# sharp peak by a few 0.1 % (0.25 % seen), so a peak missed by less than this share is
+# still in a searched segment. Reported peaks must not be more than 0.1 % under a 1 MHz
+# check.
 _EXECUTED_REFINE_SHARE = 0.02
-_EXECUTED_REFINE = 8
+# Local maxima of a quantity's samples searched per segment (the largest ones), and the
+# search's resolution (share of a sample interval) and its largest number of steps.
+_EXECUTED_CANDIDATES = 3
+_EXECUTED_SEARCH_TOLERANCE = 1e-3
+_EXECUTED_SEARCH_STEPS = 40
+# Golden-section step of the search: (3 - sqrt(5)) / 2.
+_GOLDEN_SECTION = 0.3819660112501051
+# Bisections for a root of the joint acceleration (halves the stretch each time).
+_BISECTIONS = 40
 
 
 class Motion(Protocol):
@@ -1320,13 +1327,18 @@ def executed_table(trajectory, geometry, previous=None):
     """
     Return the executed peaks of every segment (S, 5), ``EXECUTED_KEYS`` order.
 
-    Each segment is sampled ``_EXECUTED_SAMPLES`` + 1 times (ends included) and
-    every quantity's largest sample is refined by a parabola through it and its
-    neighbours, evaluated exactly at its vertex: a peak between samples is found,
-    not only the samples. Segments within ``_EXECUTED_REFINE_SHARE`` of a
-    quantity's largest peak are then sampled ``_EXECUTED_REFINE`` times as
-    densely. ``previous`` = (knot times, table) of an earlier set of knots:
-    segments it has (same start, same end) are taken from it.
+    The joint speed and acceleration are exact: the extremes of each quintic's
+    derivatives, at the ends and where the next derivative vanishes
+    (:func:`_joint_extremes`). The TCP speed, acceleration and jerk of each
+    segment are sampled ``_EXECUTED_SAMPLES`` + 1 times (ends included), and
+    each quantity's largest sample is refined by a parabola through it and its
+    neighbours, evaluated exactly at its vertex. In the segments within
+    ``_EXECUTED_REFINE_SHARE`` of a quantity's largest peak, every local
+    maximum of its samples above that share is then searched for the true
+    maximum (:func:`_peak_rows`): the reported peak of the trajectory is the
+    maximum, not a sample of it. ``previous`` = (knot times, table) of an
+    earlier set of knots: segments it has (same start, same end) are taken
+    from it.
     """
     times = trajectory.time_from_start
     table = np.zeros((times.size - 1, len(EXECUTED_KEYS)))
@@ -1341,24 +1353,28 @@ def executed_table(trajectory, geometry, previous=None):
         return table
     coefficients = segment_polynomials(trajectory)
     lengths = np.diff(times)
-    table[todo] = _segment_peaks(coefficients[todo], lengths[todo], geometry, _EXECUTED_SAMPLES)
-    # The segments that hold (or may hold) a quantity's largest peak, checked finer (those
-    # refined before are refined again: cheap, and a table from ``previous`` stays exact).
-    near = np.flatnonzero(
-        (table >= (1.0 - _EXECUTED_REFINE_SHARE) * table.max(axis=0)).any(axis=1))
-    table[near] = np.maximum(table[near], _segment_peaks(
-        coefficients[near], lengths[near], geometry, _EXECUTED_SAMPLES * _EXECUTED_REFINE))
+    table[todo] = _segment_peaks(coefficients[todo], lengths[todo], geometry, _NO_FLOORS)
+    # Where a quantity's largest peak is (or may be): searched. A segment from ``previous``
+    # is searched again (cheap, and its table stays exact whichever knots follow).
+    floors = (1.0 - _EXECUTED_REFINE_SHARE) * table[:, :3].max(axis=0)
+    near = np.flatnonzero((table[:, :3] >= floors).any(axis=1))
+    table[near] = np.maximum(table[near], _segment_peaks(coefficients[near], lengths[near],
+                                                         geometry, floors))
     return table
 
 
-def _segment_peaks(coefficients, lengths, geometry, samples):
-    """Return, per segment, the refined sampled peaks in the order of ``EXECUTED_KEYS``."""
+# The base pass of _peak_rows: no searched maxima.
+_NO_FLOORS = np.empty(0)
+
+
+def _segment_peaks(coefficients, lengths, geometry, floors):
+    """Return, per segment, the peaks of :func:`_peak_rows` in the order of ``EXECUTED_KEYS``."""
     coefficients = np.ascontiguousarray(coefficients)
     lengths = np.ascontiguousarray(lengths)
     table = np.empty((lengths.size, len(EXECUTED_KEYS)))
     failed_offset = np.empty(1)
-    failed = _peak_rows(coefficients, lengths, samples, *_kernel_geometry(geometry), table,
-                        failed_offset)
+    failed = _peak_rows(coefficients, lengths, _EXECUTED_SAMPLES, floors,
+                        *_kernel_geometry(geometry), table, failed_offset)
     if failed >= 0:
         # The error of the first pose that cannot be assembled, named as before.
         q, qdot, qddot, qdddot = evaluate_segments(coefficients[failed:failed + 1],
@@ -1369,75 +1385,243 @@ def _segment_peaks(coefficients, lengths, geometry, samples):
 
 
 @kernel
-def _peak_rows(coefficients, lengths, samples, rx, ry, offset, upper, forearm_sq, coplanar,
-               table, failed_offset):
+def _peak_rows(coefficients, lengths, samples, floors, rx, ry, offset, upper, forearm_sq,
+               coplanar, table, failed_offset):
     """
     Fill ``table`` (S, 5) with each segment's executed peaks; return the first failed one.
 
-    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) is evaluated at
-    ``samples`` + 1 evenly spaced offsets, ends included (:func:`_executed_point`); each
-    quantity's largest sample is refined by the parabola through it and its neighbours
-    (the middle one of three at a segment end), evaluated at its vertex: a peak between
-    samples is found, not only the samples. A pose that cannot be assembled (or is
-    coplanar) stops the pass: its segment is returned, its offset in ``failed_offset[0]``;
-    -1 when all are assembled.
+    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) gives its
+    exact joint peaks (:func:`_joint_extremes`); its TCP speed, acceleration and jerk
+    are evaluated at ``samples`` + 1 evenly spaced offsets, ends included. Without
+    ``floors`` (size 0) each quantity's largest sample is refined by the parabola
+    through it and its neighbours (the middle one of three at a segment end), evaluated
+    at its vertex. With ``floors`` (3,), every local maximum of a quantity's samples at
+    or above its floor (the _EXECUTED_CANDIDATES largest) is searched for the maximum
+    between its two neighbours (:func:`_search_peak`). A pose that cannot be assembled
+    (or is coplanar) stops the pass: its segment is returned, its offset in
+    ``failed_offset[0]``; -1 when all are assembled.
     """
-    work = (np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)),
-            np.empty((4, 1, 3)),
-            (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
-             np.empty((3, 3)), np.empty(3), np.empty(3)))
-    values = np.empty((samples + 1, 5))
-    point = np.empty(5)
+    values = np.empty((samples + 1, 3))
+    chosen = np.empty(_EXECUTED_CANDIDATES, np.int64)
     for segment in range(lengths.size):
         c = coefficients[segment]
-        step = lengths[segment] / samples
+        length = lengths[segment]
+        step = length / samples
+        table[segment, 3], table[segment, 4] = _joint_extremes(c, length)
         for sample in range(samples + 1):
-            x = lengths[segment] * (sample / samples)
-            if _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work,
-                               values[sample]) != _ASSEMBLED:
+            x = length * (sample / samples)
+            state, speed, accel, jerk = _executed_tcp(c, x, 3, rx, ry, offset, upper,
+                                                      forearm_sq, coplanar)
+            if state != _ASSEMBLED:
                 failed_offset[0] = x
                 return segment
-        for key in range(5):
+            values[sample, 0], values[sample, 1], values[sample, 2] = speed, accel, jerk
+        for key in range(3):
             largest = 0
             for sample in range(1, samples + 1):
                 if values[sample, key] > values[largest, key]:
                     largest = sample
             peak = values[largest, key]
-            centre = min(max(largest, 1), samples - 1)
-            before, middle, after = (values[centre - 1, key], values[centre, key],
-                                     values[centre + 1, key])
-            curvature = before - 2.0 * middle + after
-            shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
-            vertex = min(max(centre + shift, 0.0), float(samples)) * step
-            if _executed_point(c, vertex, rx, ry, offset, upper, forearm_sq, coplanar, work,
-                               point) != _ASSEMBLED:
-                failed_offset[0] = vertex
-                return segment
-            table[segment, key] = max(peak, point[key])
+            if floors.size == 0:
+                centre = min(max(largest, 1), samples - 1)
+                before, middle, after = (values[centre - 1, key], values[centre, key],
+                                         values[centre + 1, key])
+                curvature = before - 2.0 * middle + after
+                shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
+                vertex = min(max(centre + shift, 0.0), float(samples)) * step
+                state, found = _executed_value(c, vertex, key, rx, ry, offset, upper,
+                                               forearm_sq, coplanar)
+                if state != _ASSEMBLED:
+                    failed_offset[0] = vertex
+                    return segment
+                table[segment, key] = max(peak, found)
+                continue
+            count = _local_maxima(values, key, floors[key], chosen)
+            for candidate in range(count):
+                state, found, where = _search_peak(c, chosen[candidate], step, samples, values,
+                                                   key, rx, ry, offset, upper, forearm_sq,
+                                                   coplanar)
+                if state != _ASSEMBLED:
+                    failed_offset[0] = where
+                    return segment
+                peak = max(peak, found)
+            table[segment, key] = peak
     return -1
 
 
 @kernel
-def _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work, out):
+def _local_maxima(values, key, floor, chosen):
     """
-    Write JTC's executed values of quintic ``c`` (6, 3) at ``x`` into ``out`` (5,).
+    Put the largest local maxima of column ``key`` of ``values`` at or above ``floor`` in chosen.
 
-    TCP speed, acceleration and jerk norms (:func:`_tcp_row` on the quintic's joint
-    position and derivatives), then the largest |q_dot| and |q_ddot|; returns the
-    pose's status. ``work``: joint rows q, q_dot, q_ddot, q_dddot (1, 3), TCP rows
-    (4, 1, 3) and :func:`_tcp_row`'s scratch.
+    A sample is a local maximum when no neighbour is larger (the ends have one); at most
+    ``chosen.size``, largest first. Returns how many.
     """
-    q, qdot, qddot, qdddot, tcp, scratch = work
+    last = values.shape[0] - 1
+    count = 0
+    for sample in range(last + 1):
+        value = values[sample, key]
+        if value < floor or (sample > 0 and values[sample - 1, key] > value) or (
+                sample < last and values[sample + 1, key] > value):
+            continue
+        # Insertion into the sorted list of at most chosen.size.
+        place = count
+        while place > 0 and values[chosen[place - 1], key] < value:
+            place -= 1
+        if place >= chosen.size:
+            continue
+        for moved in range(min(count, chosen.size - 1), place, -1):
+            chosen[moved] = chosen[moved - 1]
+        chosen[place] = sample
+        count = min(count + 1, chosen.size)
+    return count
+
+
+@kernel
+def _search_peak(c, centre, step, samples, values, key, rx, ry, offset, upper, forearm_sq,
+                 coplanar):
+    """
+    Return (status, maximum, offset) of quantity ``key`` around sample ``centre``.
+
+    Brent's minimisation (golden sections and parabolic steps) of the negated quantity
+    on the sample's two neighbouring intervals, seeded with the three samples, down to
+    ``_EXECUTED_SEARCH_TOLERANCE`` of a sample interval: near a smooth maximum the value
+    missed is quadratic in that distance. The status is that of the first pose that
+    cannot be assembled, if any (the search stops there).
+    """
+    low = max(centre - 1, 0) * step
+    high = min(centre + 1, samples) * step
+    x = centre * step
+    best = values[centre, key]
+    # The neighbours seed the first parabolic step.
+    before = values[max(centre - 1, 0), key]
+    after = values[min(centre + 1, samples), key]
+    w, fw = (low, -before) if before >= after else (high, -after)
+    v, fv = (high, -after) if before >= after else (low, -before)
+    fx = -best
+    tolerance = _EXECUTED_SEARCH_TOLERANCE * step
+    moved = high - low
+    d = 0.0
+    for _ in range(_EXECUTED_SEARCH_STEPS):
+        middle = 0.5 * (low + high)
+        if abs(x - middle) <= 2.0 * tolerance - 0.5 * (high - low):
+            break
+        p = q = r = 0.0
+        if abs(moved) > tolerance:
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            else:
+                q = -q
+            r = moved
+            moved = d
+        if abs(p) < abs(0.5 * q * r) and p > q * (low - x) and p < q * (high - x):
+            d = p / q
+            u = x + d
+            if u - low < 2.0 * tolerance or high - u < 2.0 * tolerance:
+                d = tolerance if x < middle else -tolerance
+        else:
+            moved = (high - x) if x < middle else (low - x)
+            d = _GOLDEN_SECTION * moved
+        u = x + (d if abs(d) >= tolerance else (tolerance if d > 0.0 else -tolerance))
+        state, found = _executed_value(c, u, key, rx, ry, offset, upper, forearm_sq, coplanar)
+        if state != _ASSEMBLED:
+            return state, best, u
+        fu = -found
+        if fu <= fx:
+            if u < x:
+                high = x
+            else:
+                low = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                low = u
+            else:
+                high = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+    return _ASSEMBLED, -fx, x
+
+
+@kernel
+def _joint_extremes(c, length):
+    """
+    Return the largest |q_dot| and |q_ddot| of quintic ``c`` (6, 3) on [0, ``length``].
+
+    Exact: |q_ddot| (a cubic) peaks at an end or where q_dddot (a quadratic) vanishes;
+    |q_dot| at an end or where q_ddot vanishes, found by bisection on each stretch
+    between those points, where q_ddot is monotonic.
+    """
+    speed = accel = 0.0
     for j in range(3):
-        q[0, j] = _polynomial(c, j, x, 0)
-        qdot[0, j] = _polynomial(c, j, x, 1)
-        qddot[0, j] = _polynomial(c, j, x, 2)
-        qdddot[0, j] = _polynomial(c, j, x, 3)
-    state = _tcp_row(q, qdot, qddot, qdddot, 0, rx, ry, offset, upper, forearm_sq, coplanar,
-                     tcp[0], tcp[1], tcp[2], tcp[3], scratch)
-    for key in range(3):
-        x_, y_, z_ = tcp[key + 1, 0, 0], tcp[key + 1, 0, 1], tcp[key + 1, 0, 2]
-        out[key] = math.sqrt(x_ * x_ + y_ * y_ + z_ * z_)
-    out[3] = max(abs(qdot[0, 0]), abs(qdot[0, 1]), abs(qdot[0, 2]))
-    out[4] = max(abs(qddot[0, 0]), abs(qddot[0, 1]), abs(qddot[0, 2]))
-    return state
+        first, second = _quadratic_roots(60.0 * c[5, j], 24.0 * c[4, j], 6.0 * c[3, j])
+        cuts = (0.0, min(max(first, 0.0), length), min(max(second, 0.0), length), length)
+        for cut in cuts:
+            speed = max(speed, abs(_polynomial(c, j, cut, 1)))
+            accel = max(accel, abs(_polynomial(c, j, cut, 2)))
+        for piece in range(3):
+            low, high = cuts[piece], cuts[piece + 1]
+            at_low, at_high = _polynomial(c, j, low, 2), _polynomial(c, j, high, 2)
+            if high <= low or (at_low > 0.0) == (at_high > 0.0):
+                continue
+            for _ in range(_BISECTIONS):
+                middle = 0.5 * (low + high)
+                if (_polynomial(c, j, middle, 2) > 0.0) == (at_low > 0.0):
+                    low = middle
+                else:
+                    high = middle
+            speed = max(speed, abs(_polynomial(c, j, 0.5 * (low + high), 1)))
+    return speed, accel
+
+
+@kernel
+def _quadratic_roots(a, b, c):
+    """Return the real roots of ``a x^2 + b x + c`` in increasing order (inf where none)."""
+    if a == 0.0:
+        root = -c / b if b != 0.0 else np.inf
+        return root, np.inf
+    discriminant = b * b - 4.0 * a * c
+    if discriminant < 0.0:
+        return np.inf, np.inf
+    # The root without cancellation, then the other from their product.
+    half = -0.5 * (b + math.copysign(math.sqrt(discriminant), b))
+    first = half / a
+    second = c / half if half != 0.0 else first
+    return min(first, second), max(first, second)
+
+
+@kernel
+def _executed_tcp(c, x, order, rx, ry, offset, upper, forearm_sq, coplanar):
+    """
+    Return (status, TCP speed, acceleration, jerk norm) of quintic ``c`` (6, 3) at ``x``.
+
+    :func:`~ellipath_ros.core.kinematics._tcp_state` of the quintic's joint position and
+    derivatives; derivatives above ``order`` (1 to 3) are not computed (0).
+    """
+    state, _, velocity, acceleration, jerk = _tcp_state(
+        (_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0)),
+        (_polynomial(c, 0, x, 1), _polynomial(c, 1, x, 1), _polynomial(c, 2, x, 1)),
+        (_polynomial(c, 0, x, 2), _polynomial(c, 1, x, 2), _polynomial(c, 2, x, 2)),
+        (_polynomial(c, 0, x, 3), _polynomial(c, 1, x, 3), _polynomial(c, 2, x, 3)),
+        rx, ry, offset, upper, forearm_sq, coplanar, order)
+    return state, _norm(velocity), _norm(acceleration), _norm(jerk)
+
+
+@kernel
+def _executed_value(c, x, key, rx, ry, offset, upper, forearm_sq, coplanar):
+    """Return (status, value) of TCP quantity ``key`` (0 speed, 1 acceleration, 2 jerk)."""
+    state, speed, accel, jerk = _executed_tcp(c, x, key + 1, rx, ry, offset, upper,
+                                              forearm_sq, coplanar)
+    return state, (speed, accel, jerk)[key]
+
+
+@kernel
+def _norm(vector):
+    """Return the Euclidean norm of a 3-tuple."""
+    return math.sqrt(vector[0] * vector[0] + vector[1] * vector[1] + vector[2] * vector[2])
