@@ -86,7 +86,7 @@ _EXECUTED_REFINE_SHARE = 0.02
 # Local maxima of a quantity's samples searched per segment (the largest ones), and the
 # search's resolution (share of a sample interval) and its largest number of steps.
 _EXECUTED_CANDIDATES = 3
-_EXECUTED_SEARCH_TOLERANCE = 1e-3
+_EXECUTED_SEARCH_TOLERANCE = 1e-2
 _EXECUTED_SEARCH_STEPS = 40
 # Golden-section step of the search: (3 - sqrt(5)) / 2.
 _GOLDEN_SECTION = 0.3819660112501051
@@ -856,14 +856,9 @@ class MotionSamples:
             (times (K,), q, q_dot, q_ddot (K, 3)).
 
         """
-        times = np.asarray(times, dtype=float)
-        nearest = _nearest_sample(self.times, times)
-        moved = self.times[nearest]
-        if low is None:
-            usable = np.abs(moved - times) <= _SAME_TIME * self.duration
-        else:
-            usable = (moved - low >= 0.5 * (times - low)) & (high - moved >= 0.5 * (high - times))
-        result_times = np.where(usable, moved, times)
+        times = np.ascontiguousarray(times, dtype=float)
+        nearest, usable = self._nearest(times, low, high)
+        result_times = np.where(usable, self.times[nearest], times)
         q, qdot, qddot = (values[nearest] for values in (self.q, self.qdot, self.qddot))
         if not usable.all():
             missing = ~usable
@@ -873,12 +868,22 @@ class MotionSamples:
 
     def tcp_positions(self, times):
         """Return the planned TCP positions at ``times`` (K,), of samples where there are."""
-        nearest = _nearest_sample(self.times, times)
-        same = np.abs(self.times[nearest] - times) <= _SAME_TIME * self.duration
+        times = np.ascontiguousarray(times, dtype=float)
+        nearest, same = self._nearest(times)
         position = self.position[nearest]
         if not same.all():
             position[~same] = _checked_state_at(self.motion, times[~same])[0]
         return position
+
+    def _nearest(self, times, low=None, high=None):
+        """Return :func:`_nearest_samples` of ``times`` (K,) (the rule of :meth:`states`)."""
+        nearest = np.empty(times.size, np.int64)
+        usable = np.empty(times.size, np.bool_)
+        bounds = (_NO_BOUNDS, _NO_BOUNDS) if low is None else (
+            np.ascontiguousarray(low, dtype=float), np.ascontiguousarray(high, dtype=float))
+        _nearest_samples(self.times, times, *bounds, _SAME_TIME * self.duration, nearest,
+                         usable)
+        return nearest, usable
 
     def planned(self, times):
         """
@@ -964,11 +969,31 @@ def _hermite_row(table_times, position, velocity, time, rows, row):
                            + (x3 - x2) * width * velocity[axis, after])
 
 
-def _nearest_sample(sorted_times, targets):
-    """Return the index of the sample of ``sorted_times`` nearest to each of ``targets``."""
-    index = np.clip(np.searchsorted(sorted_times, targets), 1, sorted_times.size - 1)
-    closer_before = targets - sorted_times[index - 1] <= sorted_times[index] - targets
-    return np.where(closer_before, index - 1, index)
+# No cell bounds: _nearest_samples takes only samples at the wanted time.
+_NO_BOUNDS = np.empty(0)
+
+
+@kernel
+def _nearest_samples(sorted_times, targets, low, high, same, nearest, usable):
+    """
+    Fill ``nearest`` (K,) with the sample of ``sorted_times`` nearest to each of ``targets``.
+
+    ``usable`` (K,) tells whether a knot wanted at the target may sit there: the sample is
+    in the middle half of the target's cell [``low``, ``high``] (arrays (K,)), or, without
+    them (size 0), within ``same`` of the target.
+    """
+    last = sorted_times.size - 1
+    for row in range(targets.size):
+        target = targets[row]
+        index = min(max(np.searchsorted(sorted_times, target), 1), last)
+        closer_before = target - sorted_times[index - 1] <= sorted_times[index] - target
+        nearest[row] = index - 1 if closer_before else index
+        moved = sorted_times[nearest[row]]
+        if low.size == 0:
+            usable[row] = abs(moved - target) <= same
+        else:
+            usable[row] = (moved - low[row] >= 0.5 * (target - low[row])
+                           and high[row] - moved >= 0.5 * (high[row] - target))
 
 
 def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1e-4, *,
@@ -1338,43 +1363,27 @@ def executed_table(trajectory, geometry, previous=None):
     maximum (:func:`_peak_rows`): the reported peak of the trajectory is the
     maximum, not a sample of it. ``previous`` = (knot times, table) of an
     earlier set of knots: segments it has (same start, same end) are taken
-    from it.
+    from it (and searched again where they are near a largest peak: cheap, and
+    the table stays exact whichever knots follow).
     """
     times = trajectory.time_from_start
     table = np.zeros((times.size - 1, len(EXECUTED_KEYS)))
     todo = np.ones(times.size - 1, bool)
+    if times.size < 2:
+        return table
     if previous is not None:
         old_times, old_table = previous
         start = np.minimum(np.searchsorted(old_times, times[:-1]), old_times.size - 2)
         same = (old_times[start] == times[:-1]) & (old_times[start + 1] == times[1:])
         table[same] = old_table[start[same]]
         todo = ~same
-    if not todo.any():
-        return table
-    coefficients = segment_polynomials(trajectory)
-    lengths = np.diff(times)
-    table[todo] = _segment_peaks(coefficients[todo], lengths[todo], geometry, _NO_FLOORS)
-    # Where a quantity's largest peak is (or may be): searched. A segment from ``previous``
-    # is searched again (cheap, and its table stays exact whichever knots follow).
-    floors = (1.0 - _EXECUTED_REFINE_SHARE) * table[:, :3].max(axis=0)
-    near = np.flatnonzero((table[:, :3] >= floors).any(axis=1))
-    table[near] = np.maximum(table[near], _segment_peaks(coefficients[near], lengths[near],
-                                                         geometry, floors))
-    return table
-
-
-# The base pass of _peak_rows: no searched maxima.
-_NO_FLOORS = np.empty(0)
-
-
-def _segment_peaks(coefficients, lengths, geometry, floors):
-    """Return, per segment, the peaks of :func:`_peak_rows` in the order of ``EXECUTED_KEYS``."""
-    coefficients = np.ascontiguousarray(coefficients)
-    lengths = np.ascontiguousarray(lengths)
-    table = np.empty((lengths.size, len(EXECUTED_KEYS)))
+        if same.all():
+            return table
+    coefficients = np.ascontiguousarray(segment_polynomials(trajectory))
     failed_offset = np.empty(1)
-    failed = _peak_rows(coefficients, lengths, _EXECUTED_SAMPLES, floors,
-                        *_kernel_geometry(geometry), table, failed_offset)
+    failed = _peak_rows(coefficients, np.diff(times), todo, _EXECUTED_SAMPLES,
+                        _EXECUTED_REFINE_SHARE, *_kernel_geometry(geometry), table,
+                        failed_offset)
     if failed >= 0:
         # The error of the first pose that cannot be assembled, named as before.
         q, qdot, qddot, qdddot = evaluate_segments(coefficients[failed:failed + 1],
@@ -1385,68 +1394,111 @@ def _segment_peaks(coefficients, lengths, geometry, floors):
 
 
 @kernel
-def _peak_rows(coefficients, lengths, samples, floors, rx, ry, offset, upper, forearm_sq,
+def _peak_rows(coefficients, lengths, todo, samples, share, rx, ry, offset, upper, forearm_sq,
                coplanar, table, failed_offset):
     """
-    Fill ``table`` (S, 5) with each segment's executed peaks; return the first failed one.
+    Fill the rows ``todo`` of ``table`` (S, 5) with the executed peaks; return a failed one.
 
     Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) gives its
     exact joint peaks (:func:`_joint_extremes`); its TCP speed, acceleration and jerk
-    are evaluated at ``samples`` + 1 evenly spaced offsets, ends included. Without
-    ``floors`` (size 0) each quantity's largest sample is refined by the parabola
-    through it and its neighbours (the middle one of three at a segment end), evaluated
-    at its vertex. With ``floors`` (3,), every local maximum of a quantity's samples at
-    or above its floor (the _EXECUTED_CANDIDATES largest) is searched for the maximum
-    between its two neighbours (:func:`_search_peak`). A pose that cannot be assembled
-    (or is coplanar) stops the pass: its segment is returned, its offset in
-    ``failed_offset[0]``; -1 when all are assembled.
+    are evaluated at ``samples`` + 1 evenly spaced offsets, ends included, and each
+    quantity's largest sample is refined by the parabola through it and its neighbours
+    (the middle one of three at a segment end), evaluated at its vertex. Then, in every
+    segment (``todo`` or not) whose peak of a quantity is within ``share`` of the
+    column's largest, every local maximum of that quantity's samples above that share
+    (the _EXECUTED_CANDIDATES largest) is searched for the maximum between its two
+    neighbours (:func:`_search_peak`). A pose that cannot be assembled (or is coplanar)
+    stops the pass: its segment is returned, its offset in ``failed_offset[0]``; -1 when
+    all are assembled.
     """
-    values = np.empty((samples + 1, 3))
-    chosen = np.empty(_EXECUTED_CANDIDATES, np.int64)
-    for segment in range(lengths.size):
+    count = lengths.size
+    values = np.empty((count, samples + 1, 3))
+    for segment in range(count):
+        if not todo[segment]:
+            continue
         c = coefficients[segment]
-        length = lengths[segment]
-        step = length / samples
-        table[segment, 3], table[segment, 4] = _joint_extremes(c, length)
-        for sample in range(samples + 1):
-            x = length * (sample / samples)
-            state, speed, accel, jerk = _executed_tcp(c, x, 3, rx, ry, offset, upper,
-                                                      forearm_sq, coplanar)
-            if state != _ASSEMBLED:
-                failed_offset[0] = x
-                return segment
-            values[sample, 0], values[sample, 1], values[sample, 2] = speed, accel, jerk
+        table[segment, 3], table[segment, 4] = _joint_extremes(c, lengths[segment])
+        if not _sample_segment(c, lengths[segment], samples, rx, ry, offset, upper, forearm_sq,
+                               coplanar, values[segment], failed_offset):
+            return segment
         for key in range(3):
-            largest = 0
-            for sample in range(1, samples + 1):
-                if values[sample, key] > values[largest, key]:
-                    largest = sample
-            peak = values[largest, key]
-            if floors.size == 0:
-                centre = min(max(largest, 1), samples - 1)
-                before, middle, after = (values[centre - 1, key], values[centre, key],
-                                         values[centre + 1, key])
-                curvature = before - 2.0 * middle + after
-                shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
-                vertex = min(max(centre + shift, 0.0), float(samples)) * step
-                state, found = _executed_value(c, vertex, key, rx, ry, offset, upper,
-                                               forearm_sq, coplanar)
-                if state != _ASSEMBLED:
-                    failed_offset[0] = vertex
-                    return segment
-                table[segment, key] = max(peak, found)
+            state, peak, where = _parabola_peak(c, lengths[segment] / samples, samples,
+                                                values[segment], key, rx, ry, offset, upper,
+                                                forearm_sq, coplanar)
+            if state != _ASSEMBLED:
+                failed_offset[0] = where
+                return segment
+            table[segment, key] = peak
+    floors = np.empty(3)
+    for key in range(3):
+        floors[key] = (1.0 - share) * table[:, key].max()
+    chosen = np.empty(_EXECUTED_CANDIDATES, np.int64)
+    for segment in range(count):
+        if not (table[segment, 0] >= floors[0] or table[segment, 1] >= floors[1]
+                or table[segment, 2] >= floors[2]):
+            continue
+        c = coefficients[segment]
+        step = lengths[segment] / samples
+        if not (todo[segment] or _sample_segment(c, lengths[segment], samples, rx, ry, offset,
+                                                 upper, forearm_sq, coplanar, values[segment],
+                                                 failed_offset)):
+            return segment
+        for key in range(3):
+            if table[segment, key] < floors[key]:
                 continue
-            count = _local_maxima(values, key, floors[key], chosen)
-            for candidate in range(count):
-                state, found, where = _search_peak(c, chosen[candidate], step, samples, values,
-                                                   key, rx, ry, offset, upper, forearm_sq,
-                                                   coplanar)
+            found = _local_maxima(values[segment], key, floors[key], chosen)
+            for candidate in range(found):
+                state, peak, where = _search_peak(c, chosen[candidate], step, samples,
+                                                  values[segment], key, rx, ry, offset, upper,
+                                                  forearm_sq, coplanar)
                 if state != _ASSEMBLED:
                     failed_offset[0] = where
                     return segment
-                peak = max(peak, found)
-            table[segment, key] = peak
+                table[segment, key] = max(table[segment, key], peak)
     return -1
+
+
+@kernel
+def _sample_segment(c, length, samples, rx, ry, offset, upper, forearm_sq, coplanar, values,
+                    failed_offset):
+    """
+    Fill ``values`` (samples + 1, 3) with TCP speed, acceleration, jerk along quintic ``c``.
+
+    Evenly spaced, ends included. Returns whether every pose is assembled; if not, the
+    offset of the first that is not goes to ``failed_offset[0]`` (the rest is not filled).
+    """
+    for sample in range(samples + 1):
+        x = length * (sample / samples)
+        state, speed, accel, jerk = _executed_tcp(c, x, 3, rx, ry, offset, upper, forearm_sq,
+                                                  coplanar)
+        if state != _ASSEMBLED:
+            failed_offset[0] = x
+            return False
+        values[sample, 0], values[sample, 1], values[sample, 2] = speed, accel, jerk
+    return True
+
+
+@kernel
+def _parabola_peak(c, step, samples, values, key, rx, ry, offset, upper, forearm_sq,
+                   coplanar):
+    """
+    Return (status, peak, offset): quantity ``key``'s largest sample, refined by a parabola.
+
+    The parabola through the largest sample and its neighbours (the middle one of three
+    at a segment end) is evaluated exactly at its vertex; the larger of the two counts.
+    """
+    largest = 0
+    for sample in range(1, samples + 1):
+        if values[sample, key] > values[largest, key]:
+            largest = sample
+    centre = min(max(largest, 1), samples - 1)
+    before, middle, after = (values[centre - 1, key], values[centre, key],
+                             values[centre + 1, key])
+    curvature = before - 2.0 * middle + after
+    shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
+    vertex = min(max(centre + shift, 0.0), float(samples)) * step
+    state, found = _executed_value(c, vertex, key, rx, ry, offset, upper, forearm_sq, coplanar)
+    return state, max(values[largest, key], found), vertex
 
 
 @kernel
