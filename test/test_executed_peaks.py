@@ -14,10 +14,11 @@
 
 """The executed peaks are the maxima of JTC's quintic, not of samples: against dense NumPy."""
 
+from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.joint_trajectory import (
-    _EXECUTED_REFINE_SHARE, _joint_extremes, _quadratic_roots, evaluate_segments,
-    executed_table, minimal_knots, segment_polynomials)
-from ellipath_ros.core.kinematics import tcp_derivatives
+    _EXECUTED_REFINE_SHARE, _joint_extremes, _quadratic_roots, DEFAULT_JOINT_NAMES,
+    evaluate_segments, executed_table, JointTrajectoryData, minimal_knots, segment_polynomials)
+from ellipath_ros.core.kinematics import inverse_kinematics, tcp_derivatives
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 import numpy as np
 import pytest
@@ -87,3 +88,13 @@ def test_joint_extremes_are_the_maxima_of_random_quintics():
 def test_quadratic_roots(a, b, c, roots):
     assert _quadratic_roots(a, b, c) == pytest.approx(roots, rel=1e-9)
     assert _quadratic_roots.py_func(a, b, c) == pytest.approx(roots, rel=1e-9)
+
+
+def test_a_quintic_through_an_unassembled_pose_is_named():
+    q = inverse_kinematics(np.array([[0.0, 0.0, -0.8], [0.1, 0.0, -0.8]]), CONFIG.geometry)
+    # Joint 0 swings far up between the two knots: the forearms cannot meet there.
+    velocities = np.array([[200.0, 0.0, 0.0], [-200.0, 0.0, 0.0]])
+    knots = JointTrajectoryData(DEFAULT_JOINT_NAMES, np.array([0.0, 0.1]), q, velocities,
+                                np.zeros((2, 3)))
+    with pytest.raises(UnreachableError, match='interpolated q'):
+        executed_table(knots, CONFIG.geometry)

@@ -17,8 +17,8 @@
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.joint_trajectory import (
-    _interval_peaks, _nearest_samples, _NO_BOUNDS, executed_table, knots_at, MotionSamples,
-    quintic_positions)
+    _interval_peaks, _nearest_samples, _NO_BOUNDS, _sample_peak_rows, executed_table, knots_at,
+    MotionSamples, quintic_positions)
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics, joint_motion
 from ellipath_ros.core.planner import _slowed_points, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import time_motion
@@ -107,9 +107,10 @@ def test_segment_peaks_are_the_largest_samples_of_each_interval():
                     np.abs(samples.qdot[inside]).max(), np.abs(samples.qddot[inside]).max()]
         np.testing.assert_allclose(peaks[index], expected, rtol=1e-12)
     # The compiled loop does what its plain-Python form does.
-    interpreted = np.empty_like(peaks)
-    _interval_peaks.py_func(samples.times, samples.velocity, samples.acceleration, samples.jerk,
-                            samples.qdot, samples.qddot, times, interpreted)
+    sample_peaks, interpreted = np.empty((samples.times.size, 5)), np.empty_like(peaks)
+    _sample_peak_rows.py_func(samples.velocity, samples.acceleration, samples.jerk,
+                              samples.qdot, samples.qddot, sample_peaks)
+    _interval_peaks.py_func(samples.times, sample_peaks, times, interpreted)
     np.testing.assert_array_equal(peaks, interpreted)
 
 

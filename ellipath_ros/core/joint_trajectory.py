@@ -791,6 +791,7 @@ class MotionSamples:
             joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
         self.q, self.qdot, self.qddot = joints
         self._planned = None
+        self._sample_peaks = None
 
     @classmethod
     def of(cls, motion, geometry):
@@ -834,10 +835,15 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
+        if self._sample_peaks is None:
+            # Per sample once, for every set of knots the search and its rounds ask about.
+            self._sample_peaks = np.empty((self.times.size, len(EXECUTED_KEYS)))
+            _sample_peak_rows(*(np.ascontiguousarray(values) for values in (
+                self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
+                self._sample_peaks)
         peaks = np.empty((times.size - 1, len(EXECUTED_KEYS)))
-        _interval_peaks(self.times, *(np.ascontiguousarray(values) for values in (
-            self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
-            np.ascontiguousarray(times, dtype=float), peaks)
+        _interval_peaks(self.times, self._sample_peaks, np.ascontiguousarray(times, dtype=float),
+                        peaks)
         return peaks
 
     def states(self, times, low=None, high=None):
@@ -907,17 +913,20 @@ class MotionSamples:
             # along the points, not across 3 coordinates.
             keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
             keep[0] = True
-            self._planned = (np.ascontiguousarray(self.times[keep]),
-                             np.ascontiguousarray(self.position[keep].T),
-                             np.ascontiguousarray(self.velocity[keep].T))
+            # np.take of the indices: a boolean mask of (N, 3) rows, transposed, cost ten
+            # times as much.
+            index = np.flatnonzero(keep)
+            self._planned = (self.times[index], np.take(self.position.T, index, axis=1),
+                             np.take(self.velocity.T, index, axis=1))
         return self._planned
 
 
 @kernel
-def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, times, peaks):
+def _interval_peaks(sample_times, sample_peaks, times, peaks):
     """
     Fill ``peaks`` (K - 1, 5) with :meth:`MotionSamples.segment_peaks` on ``times`` (K,).
 
+    ``sample_peaks`` (N, 5) holds the quantities at each sample (:func:`_sample_peak_rows`).
     Interval i takes the samples from the first at or after ``times[i]`` to the last at or
     before ``times[i + 1]``, at least one (the one at its start, the last if none follows).
     """
@@ -929,14 +938,20 @@ def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, tim
             peaks[interval, key] = 0.0
         for sample in range(first, end):
             row = min(sample, count - 1)
-            for key, vector in enumerate((velocity, acceleration, jerk)):
-                norm = math.sqrt(vector[row, 0] * vector[row, 0] + vector[row, 1] * vector[row, 1]
-                                 + vector[row, 2] * vector[row, 2])
-                peaks[interval, key] = max(peaks[interval, key], norm)
-            peaks[interval, 3] = max(peaks[interval, 3], abs(qdot[row, 0]), abs(qdot[row, 1]),
-                                     abs(qdot[row, 2]))
-            peaks[interval, 4] = max(peaks[interval, 4], abs(qddot[row, 0]), abs(qddot[row, 1]),
-                                     abs(qddot[row, 2]))
+            for key in range(5):
+                peaks[interval, key] = max(peaks[interval, key], sample_peaks[row, key])
+
+
+@kernel
+def _sample_peak_rows(velocity, acceleration, jerk, qdot, qddot, out):
+    """Fill ``out`` (N, 5) with TCP speed, acceleration, jerk norm, largest |q_dot|, |q_ddot|."""
+    for row in range(out.shape[0]):
+        for key, vector in enumerate((velocity, acceleration, jerk)):
+            out[row, key] = math.sqrt(vector[row, 0] * vector[row, 0]
+                                      + vector[row, 1] * vector[row, 1]
+                                      + vector[row, 2] * vector[row, 2])
+        out[row, 3] = max(abs(qdot[row, 0]), abs(qdot[row, 1]), abs(qdot[row, 2]))
+        out[row, 4] = max(abs(qddot[row, 0]), abs(qddot[row, 1]), abs(qddot[row, 2]))
 
 
 @kernel
