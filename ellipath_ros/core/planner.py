@@ -591,8 +591,9 @@ def _joint_points(motion, config, bounds, samples=None):
     a step of the jerk, and reaches up to 1.7 times the true jerk across one. So every
     segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` and exceed the
     planned motion's there by more than ``_QUINTIC_EXCESS`` gets points at the jerk steps
-    inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle if it has
-    none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded peak.
+    inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle (the sample
+    nearest to it) if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round
+    lowers an exceeded peak.
     Samples output is checked, not changed. The table (S, 5) has the peaks of each segment
     in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
     are taken when given, else made here.
@@ -620,12 +621,21 @@ def _joint_points(motion, config, bounds, samples=None):
             # Only a leg with a broken segment needs its jerk steps.
             step_times, step_sizes = motion.jerk_steps()
             steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
-        added = []
+        added, halved = [], []
         for index in broken:
             start, end = times[index], times[index + 1]
             # A step closer than the gap to an end is at that point already.
             inside = steps[(steps > start + _KNOT_MIN_GAP) & (steps < end - _KNOT_MIN_GAP)]
-            added.extend(inside if inside.size else [0.5 * (start + end)])
+            if inside.size:
+                added.extend(inside)
+            else:
+                halved.append(index)
+        if halved:
+            # The middle of a segment without a step: the sample nearest to it, if in the
+            # middle half of the segment (its state is known), else the middle itself.
+            halved = np.array(halved)
+            added.extend(samples.states(0.5 * (times[halved] + times[halved + 1]),
+                                        times[halved], times[halved + 1])[0])
         trajectory = _with_points(trajectory, samples, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
