@@ -17,7 +17,8 @@
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.joint_trajectory import (
-    _interval_peaks, executed_table, knots_at, MotionSamples, quintic_positions)
+    _interval_peaks, _nearest_samples, _NO_BOUNDS, _sample_peak_rows, executed_table, knots_at,
+    MotionSamples, quintic_positions)
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics, joint_motion
 from ellipath_ros.core.planner import _slowed_points, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import time_motion
@@ -106,9 +107,10 @@ def test_segment_peaks_are_the_largest_samples_of_each_interval():
                     np.abs(samples.qdot[inside]).max(), np.abs(samples.qddot[inside]).max()]
         np.testing.assert_allclose(peaks[index], expected, rtol=1e-12)
     # The compiled loop does what its plain-Python form does.
-    interpreted = np.empty_like(peaks)
-    _interval_peaks.py_func(samples.times, samples.velocity, samples.acceleration, samples.jerk,
-                            samples.qdot, samples.qddot, times, interpreted)
+    sample_peaks, interpreted = np.empty((samples.times.size, 5)), np.empty_like(peaks)
+    _sample_peak_rows.py_func(samples.velocity, samples.acceleration, samples.jerk,
+                              samples.qdot, samples.qddot, sample_peaks)
+    _interval_peaks.py_func(samples.times, sample_peaks, times, interpreted)
     np.testing.assert_array_equal(peaks, interpreted)
 
 
@@ -167,3 +169,25 @@ def test_knot_states_move_to_samples_only_inside_their_cell(factor):
     for mine, other in ((q, exact.positions), (qdot, exact.velocities),
                         (qddot, exact.accelerations)):
         np.testing.assert_allclose(mine, other, rtol=1e-9, atol=1e-9)
+
+
+def test_nearest_samples_match_numpy():
+    rng = np.random.default_rng(8)
+    sample_times = np.sort(np.concatenate((rng.uniform(0.0, 1.0, 300), [0.0, 1.0, 0.5, 0.5])))
+    targets = np.sort(rng.uniform(-0.1, 1.1, 80))
+    low, high = targets - rng.uniform(0.0, 0.01, 80), targets + rng.uniform(0.0, 0.01, 80)
+    index = np.minimum(np.maximum(np.searchsorted(sample_times, targets), 1),
+                       sample_times.size - 1)
+    expected = np.where(targets - sample_times[index - 1] <= sample_times[index] - targets,
+                        index - 1, index)
+    moved = sample_times[expected]
+    for bounds, usable in (
+            ((low, high), (moved - low >= 0.5 * (targets - low))
+             & (high - moved >= 0.5 * (high - targets))),
+            ((_NO_BOUNDS, _NO_BOUNDS), np.abs(moved - targets) <= 1e-3)):
+        nearest, flags = np.empty(80, np.int64), np.empty(80, np.bool_)
+        _nearest_samples(sample_times, targets, *bounds, 1e-3, nearest, flags)
+        assert (nearest == expected).all()
+        assert (flags == usable).all()
+        # Some knots may move, some may not: both rules are exercised.
+        assert 0 < flags.sum() < 80

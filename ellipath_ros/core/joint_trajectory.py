@@ -42,7 +42,7 @@ from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _forward_row
 from ellipath_ros.core.kinematics import _kernel_geometry
-from ellipath_ros.core.kinematics import _tcp_row
+from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
@@ -74,17 +74,24 @@ _SAME_TIME = 1e-8
 # jerk [m/s^3], joint speed [rad/s] and acceleration [rad/s^2].
 EXECUTED_KEYS = ('peak_speed', 'peak_accel', 'peak_jerk', 'joint_peak_velocity',
                  'joint_peak_accel')
-# Samples per knot segment for the executed peaks (ends included: one more); each largest
-# sample is refined by a parabola through its neighbours. On 1,000 random legs the peaks so
-# found are within 0.01 % of a 1 MHz check.
-_EXECUTED_SAMPLES = 16
+# Samples per knot segment for the executed TCP peaks (ends included: one more); each largest
+# sample is refined by a parabola through its neighbours.
+_EXECUTED_SAMPLES = 12
 # Segments whose peak of a quantity is within this share of the trajectory's largest are
-# sampled again _EXECUTED_REFINE times as densely: 16 samples and a parabola can miss a sharp
-# peak by a few 0.1 % (0.25 % seen), the refined pass by ~1/64 of that. The reported peaks
-# must not be more than 0.1 % under a 1 MHz check; a peak missed by less than this share
-# is still in a selected segment.
+# searched for that quantity's maximum: the base samples and their parabola can miss a
+# sharp peak by a few 0.1 % (0.25 % seen), so a peak missed by less than this share is
+# still in a searched segment. Reported peaks must not be more than 0.1 % under a 1 MHz
+# check.
 _EXECUTED_REFINE_SHARE = 0.02
-_EXECUTED_REFINE = 8
+# Local maxima of a quantity's samples searched per segment (the largest ones), and the
+# search's resolution (share of a sample interval) and its largest number of steps.
+_EXECUTED_CANDIDATES = 3
+_EXECUTED_SEARCH_TOLERANCE = 1e-2
+_EXECUTED_SEARCH_STEPS = 40
+# Golden-section step of the search: (3 - sqrt(5)) / 2.
+_GOLDEN_SECTION = 0.3819660112501051
+# Bisections for a root of the joint acceleration (halves the stretch each time).
+_BISECTIONS = 40
 
 
 class Motion(Protocol):
@@ -784,6 +791,7 @@ class MotionSamples:
             joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
         self.q, self.qdot, self.qddot = joints
         self._planned = None
+        self._sample_peaks = None
 
     @classmethod
     def of(cls, motion, geometry):
@@ -827,10 +835,15 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
+        if self._sample_peaks is None:
+            # Per sample once, for every set of knots the search and its rounds ask about.
+            self._sample_peaks = np.empty((self.times.size, len(EXECUTED_KEYS)))
+            _sample_peak_rows(*(np.ascontiguousarray(values) for values in (
+                self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
+                self._sample_peaks)
         peaks = np.empty((times.size - 1, len(EXECUTED_KEYS)))
-        _interval_peaks(self.times, *(np.ascontiguousarray(values) for values in (
-            self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
-            np.ascontiguousarray(times, dtype=float), peaks)
+        _interval_peaks(self.times, self._sample_peaks, np.ascontiguousarray(times, dtype=float),
+                        peaks)
         return peaks
 
     def states(self, times, low=None, high=None):
@@ -849,14 +862,9 @@ class MotionSamples:
             (times (K,), q, q_dot, q_ddot (K, 3)).
 
         """
-        times = np.asarray(times, dtype=float)
-        nearest = _nearest_sample(self.times, times)
-        moved = self.times[nearest]
-        if low is None:
-            usable = np.abs(moved - times) <= _SAME_TIME * self.duration
-        else:
-            usable = (moved - low >= 0.5 * (times - low)) & (high - moved >= 0.5 * (high - times))
-        result_times = np.where(usable, moved, times)
+        times = np.ascontiguousarray(times, dtype=float)
+        nearest, usable = self._nearest(times, low, high)
+        result_times = np.where(usable, self.times[nearest], times)
         q, qdot, qddot = (values[nearest] for values in (self.q, self.qdot, self.qddot))
         if not usable.all():
             missing = ~usable
@@ -866,12 +874,22 @@ class MotionSamples:
 
     def tcp_positions(self, times):
         """Return the planned TCP positions at ``times`` (K,), of samples where there are."""
-        nearest = _nearest_sample(self.times, times)
-        same = np.abs(self.times[nearest] - times) <= _SAME_TIME * self.duration
+        times = np.ascontiguousarray(times, dtype=float)
+        nearest, same = self._nearest(times)
         position = self.position[nearest]
         if not same.all():
             position[~same] = _checked_state_at(self.motion, times[~same])[0]
         return position
+
+    def _nearest(self, times, low=None, high=None):
+        """Return :func:`_nearest_samples` of ``times`` (K,) (the rule of :meth:`states`)."""
+        nearest = np.empty(times.size, np.int64)
+        usable = np.empty(times.size, np.bool_)
+        bounds = (_NO_BOUNDS, _NO_BOUNDS) if low is None else (
+            np.ascontiguousarray(low, dtype=float), np.ascontiguousarray(high, dtype=float))
+        _nearest_samples(self.times, times, *bounds, _SAME_TIME * self.duration, nearest,
+                         usable)
+        return nearest, usable
 
     def planned(self, times):
         """
@@ -895,17 +913,20 @@ class MotionSamples:
             # along the points, not across 3 coordinates.
             keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
             keep[0] = True
-            self._planned = (np.ascontiguousarray(self.times[keep]),
-                             np.ascontiguousarray(self.position[keep].T),
-                             np.ascontiguousarray(self.velocity[keep].T))
+            # np.take of the indices: a boolean mask of (N, 3) rows, transposed, cost ten
+            # times as much.
+            index = np.flatnonzero(keep)
+            self._planned = (self.times[index], np.take(self.position.T, index, axis=1),
+                             np.take(self.velocity.T, index, axis=1))
         return self._planned
 
 
 @kernel
-def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, times, peaks):
+def _interval_peaks(sample_times, sample_peaks, times, peaks):
     """
     Fill ``peaks`` (K - 1, 5) with :meth:`MotionSamples.segment_peaks` on ``times`` (K,).
 
+    ``sample_peaks`` (N, 5) holds the quantities at each sample (:func:`_sample_peak_rows`).
     Interval i takes the samples from the first at or after ``times[i]`` to the last at or
     before ``times[i + 1]``, at least one (the one at its start, the last if none follows).
     """
@@ -917,14 +938,20 @@ def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, tim
             peaks[interval, key] = 0.0
         for sample in range(first, end):
             row = min(sample, count - 1)
-            for key, vector in enumerate((velocity, acceleration, jerk)):
-                norm = math.sqrt(vector[row, 0] * vector[row, 0] + vector[row, 1] * vector[row, 1]
-                                 + vector[row, 2] * vector[row, 2])
-                peaks[interval, key] = max(peaks[interval, key], norm)
-            peaks[interval, 3] = max(peaks[interval, 3], abs(qdot[row, 0]), abs(qdot[row, 1]),
-                                     abs(qdot[row, 2]))
-            peaks[interval, 4] = max(peaks[interval, 4], abs(qddot[row, 0]), abs(qddot[row, 1]),
-                                     abs(qddot[row, 2]))
+            for key in range(5):
+                peaks[interval, key] = max(peaks[interval, key], sample_peaks[row, key])
+
+
+@kernel
+def _sample_peak_rows(velocity, acceleration, jerk, qdot, qddot, out):
+    """Fill ``out`` (N, 5) with TCP speed, acceleration, jerk norm, largest |q_dot|, |q_ddot|."""
+    for row in range(out.shape[0]):
+        for key, vector in enumerate((velocity, acceleration, jerk)):
+            out[row, key] = math.sqrt(vector[row, 0] * vector[row, 0]
+                                      + vector[row, 1] * vector[row, 1]
+                                      + vector[row, 2] * vector[row, 2])
+        out[row, 3] = max(abs(qdot[row, 0]), abs(qdot[row, 1]), abs(qdot[row, 2]))
+        out[row, 4] = max(abs(qddot[row, 0]), abs(qddot[row, 1]), abs(qddot[row, 2]))
 
 
 @kernel
@@ -957,11 +984,31 @@ def _hermite_row(table_times, position, velocity, time, rows, row):
                            + (x3 - x2) * width * velocity[axis, after])
 
 
-def _nearest_sample(sorted_times, targets):
-    """Return the index of the sample of ``sorted_times`` nearest to each of ``targets``."""
-    index = np.clip(np.searchsorted(sorted_times, targets), 1, sorted_times.size - 1)
-    closer_before = targets - sorted_times[index - 1] <= sorted_times[index] - targets
-    return np.where(closer_before, index - 1, index)
+# No cell bounds: _nearest_samples takes only samples at the wanted time.
+_NO_BOUNDS = np.empty(0)
+
+
+@kernel
+def _nearest_samples(sorted_times, targets, low, high, same, nearest, usable):
+    """
+    Fill ``nearest`` (K,) with the sample of ``sorted_times`` nearest to each of ``targets``.
+
+    ``usable`` (K,) tells whether a knot wanted at the target may sit there: the sample is
+    in the middle half of the target's cell [``low``, ``high``] (arrays (K,)), or, without
+    them (size 0), within ``same`` of the target.
+    """
+    last = sorted_times.size - 1
+    for row in range(targets.size):
+        target = targets[row]
+        index = min(max(np.searchsorted(sorted_times, target), 1), last)
+        closer_before = target - sorted_times[index - 1] <= sorted_times[index] - target
+        nearest[row] = index - 1 if closer_before else index
+        moved = sorted_times[nearest[row]]
+        if low.size == 0:
+            usable[row] = abs(moved - target) <= same
+        else:
+            usable[row] = (moved - low[row] >= 0.5 * (target - low[row])
+                           and high[row] - moved >= 0.5 * (high[row] - target))
 
 
 def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1e-4, *,
@@ -1320,44 +1367,37 @@ def executed_table(trajectory, geometry, previous=None):
     """
     Return the executed peaks of every segment (S, 5), ``EXECUTED_KEYS`` order.
 
-    Each segment is sampled ``_EXECUTED_SAMPLES`` + 1 times (ends included) and
-    every quantity's largest sample is refined by a parabola through it and its
-    neighbours, evaluated exactly at its vertex: a peak between samples is found,
-    not only the samples. Segments within ``_EXECUTED_REFINE_SHARE`` of a
-    quantity's largest peak are then sampled ``_EXECUTED_REFINE`` times as
-    densely. ``previous`` = (knot times, table) of an earlier set of knots:
-    segments it has (same start, same end) are taken from it.
+    The joint speed and acceleration are exact: the extremes of each quintic's
+    derivatives, at the ends and where the next derivative vanishes
+    (:func:`_joint_extremes`). The TCP speed, acceleration and jerk of each
+    segment are sampled ``_EXECUTED_SAMPLES`` + 1 times (ends included), and
+    each quantity's largest sample is refined by a parabola through it and its
+    neighbours, evaluated exactly at its vertex. In the segments within
+    ``_EXECUTED_REFINE_SHARE`` of a quantity's largest peak, every local
+    maximum of its samples above that share is then searched for the true
+    maximum (:func:`_peak_rows`): the reported peak of the trajectory is the
+    maximum, not a sample of it. ``previous`` = (knot times, table) of an
+    earlier set of knots: segments it has (same start, same end) are taken
+    from it (and searched again where they are near a largest peak: cheap, and
+    the table stays exact whichever knots follow).
     """
     times = trajectory.time_from_start
     table = np.zeros((times.size - 1, len(EXECUTED_KEYS)))
     todo = np.ones(times.size - 1, bool)
+    if times.size < 2:
+        return table
     if previous is not None:
         old_times, old_table = previous
         start = np.minimum(np.searchsorted(old_times, times[:-1]), old_times.size - 2)
         same = (old_times[start] == times[:-1]) & (old_times[start + 1] == times[1:])
         table[same] = old_table[start[same]]
         todo = ~same
-    if not todo.any():
-        return table
-    coefficients = segment_polynomials(trajectory)
-    lengths = np.diff(times)
-    table[todo] = _segment_peaks(coefficients[todo], lengths[todo], geometry, _EXECUTED_SAMPLES)
-    # The segments that hold (or may hold) a quantity's largest peak, checked finer (those
-    # refined before are refined again: cheap, and a table from ``previous`` stays exact).
-    near = np.flatnonzero(
-        (table >= (1.0 - _EXECUTED_REFINE_SHARE) * table.max(axis=0)).any(axis=1))
-    table[near] = np.maximum(table[near], _segment_peaks(
-        coefficients[near], lengths[near], geometry, _EXECUTED_SAMPLES * _EXECUTED_REFINE))
-    return table
-
-
-def _segment_peaks(coefficients, lengths, geometry, samples):
-    """Return, per segment, the refined sampled peaks in the order of ``EXECUTED_KEYS``."""
-    coefficients = np.ascontiguousarray(coefficients)
-    lengths = np.ascontiguousarray(lengths)
-    table = np.empty((lengths.size, len(EXECUTED_KEYS)))
+        if same.all():
+            return table
+    coefficients = np.ascontiguousarray(segment_polynomials(trajectory))
     failed_offset = np.empty(1)
-    failed = _peak_rows(coefficients, lengths, samples, *_kernel_geometry(geometry), table,
+    failed = _peak_rows(coefficients, np.diff(times), todo, _EXECUTED_SAMPLES,
+                        _EXECUTED_REFINE_SHARE, *_kernel_geometry(geometry), table,
                         failed_offset)
     if failed >= 0:
         # The error of the first pose that cannot be assembled, named as before.
@@ -1369,75 +1409,286 @@ def _segment_peaks(coefficients, lengths, geometry, samples):
 
 
 @kernel
-def _peak_rows(coefficients, lengths, samples, rx, ry, offset, upper, forearm_sq, coplanar,
-               table, failed_offset):
+def _peak_rows(coefficients, lengths, todo, samples, share, rx, ry, offset, upper, forearm_sq,
+               coplanar, table, failed_offset):
     """
-    Fill ``table`` (S, 5) with each segment's executed peaks; return the first failed one.
+    Fill the rows ``todo`` of ``table`` (S, 5) with the executed peaks; return a failed one.
 
-    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) is evaluated at
-    ``samples`` + 1 evenly spaced offsets, ends included (:func:`_executed_point`); each
+    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) gives its
+    exact joint peaks (:func:`_joint_extremes`); its TCP speed, acceleration and jerk
+    are evaluated at ``samples`` + 1 evenly spaced offsets, ends included, and each
     quantity's largest sample is refined by the parabola through it and its neighbours
-    (the middle one of three at a segment end), evaluated at its vertex: a peak between
-    samples is found, not only the samples. A pose that cannot be assembled (or is
-    coplanar) stops the pass: its segment is returned, its offset in ``failed_offset[0]``;
-    -1 when all are assembled.
+    (the middle one of three at a segment end), evaluated at its vertex. Then, in every
+    segment (``todo`` or not) whose peak of a quantity is within ``share`` of the
+    column's largest, every local maximum of that quantity's samples above that share
+    (the _EXECUTED_CANDIDATES largest) is searched for the maximum between its two
+    neighbours (:func:`_search_peak`). A pose that cannot be assembled (or is coplanar)
+    stops the pass: its segment is returned, its offset in ``failed_offset[0]``; -1 when
+    all are assembled.
     """
-    work = (np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)),
-            np.empty((4, 1, 3)),
-            (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
-             np.empty((3, 3)), np.empty(3), np.empty(3)))
-    values = np.empty((samples + 1, 5))
-    point = np.empty(5)
-    for segment in range(lengths.size):
+    count = lengths.size
+    values = np.empty((count, samples + 1, 3))
+    for segment in range(count):
+        if not todo[segment]:
+            continue
+        c = coefficients[segment]
+        table[segment, 3], table[segment, 4] = _joint_extremes(c, lengths[segment])
+        if not _sample_segment(c, lengths[segment], samples, rx, ry, offset, upper, forearm_sq,
+                               coplanar, values[segment], failed_offset):
+            return segment
+        for key in range(3):
+            state, peak, where = _parabola_peak(c, lengths[segment] / samples, samples,
+                                                values[segment], key, rx, ry, offset, upper,
+                                                forearm_sq, coplanar)
+            if state != _ASSEMBLED:
+                failed_offset[0] = where
+                return segment
+            table[segment, key] = peak
+    floors = np.empty(3)
+    for key in range(3):
+        floors[key] = (1.0 - share) * table[:, key].max()
+    chosen = np.empty(_EXECUTED_CANDIDATES, np.int64)
+    for segment in range(count):
+        if not (table[segment, 0] >= floors[0] or table[segment, 1] >= floors[1]
+                or table[segment, 2] >= floors[2]):
+            continue
         c = coefficients[segment]
         step = lengths[segment] / samples
-        for sample in range(samples + 1):
-            x = lengths[segment] * (sample / samples)
-            if _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work,
-                               values[sample]) != _ASSEMBLED:
-                failed_offset[0] = x
-                return segment
-        for key in range(5):
-            largest = 0
-            for sample in range(1, samples + 1):
-                if values[sample, key] > values[largest, key]:
-                    largest = sample
-            peak = values[largest, key]
-            centre = min(max(largest, 1), samples - 1)
-            before, middle, after = (values[centre - 1, key], values[centre, key],
-                                     values[centre + 1, key])
-            curvature = before - 2.0 * middle + after
-            shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
-            vertex = min(max(centre + shift, 0.0), float(samples)) * step
-            if _executed_point(c, vertex, rx, ry, offset, upper, forearm_sq, coplanar, work,
-                               point) != _ASSEMBLED:
-                failed_offset[0] = vertex
-                return segment
-            table[segment, key] = max(peak, point[key])
+        if not (todo[segment] or _sample_segment(c, lengths[segment], samples, rx, ry, offset,
+                                                 upper, forearm_sq, coplanar, values[segment],
+                                                 failed_offset)):
+            return segment
+        for key in range(3):
+            if table[segment, key] < floors[key]:
+                continue
+            found = _local_maxima(values[segment], key, floors[key], chosen)
+            for candidate in range(found):
+                state, peak, where = _search_peak(c, chosen[candidate], step, samples,
+                                                  values[segment], key, rx, ry, offset, upper,
+                                                  forearm_sq, coplanar)
+                if state != _ASSEMBLED:
+                    failed_offset[0] = where
+                    return segment
+                table[segment, key] = max(table[segment, key], peak)
     return -1
 
 
 @kernel
-def _executed_point(c, x, rx, ry, offset, upper, forearm_sq, coplanar, work, out):
+def _sample_segment(c, length, samples, rx, ry, offset, upper, forearm_sq, coplanar, values,
+                    failed_offset):
     """
-    Write JTC's executed values of quintic ``c`` (6, 3) at ``x`` into ``out`` (5,).
+    Fill ``values`` (samples + 1, 3) with TCP speed, acceleration, jerk along quintic ``c``.
 
-    TCP speed, acceleration and jerk norms (:func:`_tcp_row` on the quintic's joint
-    position and derivatives), then the largest |q_dot| and |q_ddot|; returns the
-    pose's status. ``work``: joint rows q, q_dot, q_ddot, q_dddot (1, 3), TCP rows
-    (4, 1, 3) and :func:`_tcp_row`'s scratch.
+    Evenly spaced, ends included. Returns whether every pose is assembled; if not, the
+    offset of the first that is not goes to ``failed_offset[0]`` (the rest is not filled).
     """
-    q, qdot, qddot, qdddot, tcp, scratch = work
+    for sample in range(samples + 1):
+        x = length * (sample / samples)
+        state, speed, accel, jerk = _executed_tcp(c, x, 3, rx, ry, offset, upper, forearm_sq,
+                                                  coplanar)
+        if state != _ASSEMBLED:
+            failed_offset[0] = x
+            return False
+        values[sample, 0], values[sample, 1], values[sample, 2] = speed, accel, jerk
+    return True
+
+
+@kernel
+def _parabola_peak(c, step, samples, values, key, rx, ry, offset, upper, forearm_sq,
+                   coplanar):
+    """
+    Return (status, peak, offset): quantity ``key``'s largest sample, refined by a parabola.
+
+    The parabola through the largest sample and its neighbours (the middle one of three
+    at a segment end) is evaluated exactly at its vertex; the larger of the two counts.
+    """
+    largest = 0
+    for sample in range(1, samples + 1):
+        if values[sample, key] > values[largest, key]:
+            largest = sample
+    centre = min(max(largest, 1), samples - 1)
+    before, middle, after = (values[centre - 1, key], values[centre, key],
+                             values[centre + 1, key])
+    curvature = before - 2.0 * middle + after
+    shift = 0.5 * (before - after) / curvature if curvature < 0.0 else 0.0
+    vertex = min(max(centre + shift, 0.0), float(samples)) * step
+    state, found = _executed_value(c, vertex, key, rx, ry, offset, upper, forearm_sq, coplanar)
+    return state, max(values[largest, key], found), vertex
+
+
+@kernel
+def _local_maxima(values, key, floor, chosen):
+    """
+    Put the largest local maxima of column ``key`` of ``values`` at or above ``floor`` in chosen.
+
+    A sample is a local maximum when no neighbour is larger (the ends have one); at most
+    ``chosen.size``, largest first. Returns how many.
+    """
+    last = values.shape[0] - 1
+    count = 0
+    for sample in range(last + 1):
+        value = values[sample, key]
+        if value < floor or (sample > 0 and values[sample - 1, key] > value) or (
+                sample < last and values[sample + 1, key] > value):
+            continue
+        # Insertion into the sorted list of at most chosen.size.
+        place = count
+        while place > 0 and values[chosen[place - 1], key] < value:
+            place -= 1
+        if place >= chosen.size:
+            continue
+        for moved in range(min(count, chosen.size - 1), place, -1):
+            chosen[moved] = chosen[moved - 1]
+        chosen[place] = sample
+        count = min(count + 1, chosen.size)
+    return count
+
+
+@kernel
+def _search_peak(c, centre, step, samples, values, key, rx, ry, offset, upper, forearm_sq,
+                 coplanar):
+    """
+    Return (status, maximum, offset) of quantity ``key`` around sample ``centre``.
+
+    Brent's minimisation (golden sections and parabolic steps) of the negated quantity
+    on the sample's two neighbouring intervals, seeded with the three samples, down to
+    ``_EXECUTED_SEARCH_TOLERANCE`` of a sample interval: near a smooth maximum the value
+    missed is quadratic in that distance. The status is that of the first pose that
+    cannot be assembled, if any (the search stops there).
+    """
+    low = max(centre - 1, 0) * step
+    high = min(centre + 1, samples) * step
+    x = centre * step
+    best = values[centre, key]
+    # The neighbours seed the first parabolic step.
+    before = values[max(centre - 1, 0), key]
+    after = values[min(centre + 1, samples), key]
+    w, fw = (low, -before) if before >= after else (high, -after)
+    v, fv = (high, -after) if before >= after else (low, -before)
+    fx = -best
+    tolerance = _EXECUTED_SEARCH_TOLERANCE * step
+    moved = high - low
+    d = 0.0
+    for _ in range(_EXECUTED_SEARCH_STEPS):
+        middle = 0.5 * (low + high)
+        if abs(x - middle) <= 2.0 * tolerance - 0.5 * (high - low):
+            break
+        p = q = r = 0.0
+        if abs(moved) > tolerance:
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            else:
+                q = -q
+            r = moved
+            moved = d
+        if abs(p) < abs(0.5 * q * r) and p > q * (low - x) and p < q * (high - x):
+            d = p / q
+            u = x + d
+            if u - low < 2.0 * tolerance or high - u < 2.0 * tolerance:
+                d = tolerance if x < middle else -tolerance
+        else:
+            moved = (high - x) if x < middle else (low - x)
+            d = _GOLDEN_SECTION * moved
+        u = x + (d if abs(d) >= tolerance else (tolerance if d > 0.0 else -tolerance))
+        state, found = _executed_value(c, u, key, rx, ry, offset, upper, forearm_sq, coplanar)
+        if state != _ASSEMBLED:
+            return state, best, u
+        fu = -found
+        if fu <= fx:
+            if u < x:
+                high = x
+            else:
+                low = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                low = u
+            else:
+                high = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+    return _ASSEMBLED, -fx, x
+
+
+@kernel
+def _joint_extremes(c, length):
+    """
+    Return the largest |q_dot| and |q_ddot| of quintic ``c`` (6, 3) on [0, ``length``].
+
+    Exact: |q_ddot| (a cubic) peaks at an end or where q_dddot (a quadratic) vanishes;
+    |q_dot| at an end or where q_ddot vanishes, found by bisection on each stretch
+    between those points, where q_ddot is monotonic.
+    """
+    speed = accel = 0.0
     for j in range(3):
-        q[0, j] = _polynomial(c, j, x, 0)
-        qdot[0, j] = _polynomial(c, j, x, 1)
-        qddot[0, j] = _polynomial(c, j, x, 2)
-        qdddot[0, j] = _polynomial(c, j, x, 3)
-    state = _tcp_row(q, qdot, qddot, qdddot, 0, rx, ry, offset, upper, forearm_sq, coplanar,
-                     tcp[0], tcp[1], tcp[2], tcp[3], scratch)
-    for key in range(3):
-        x_, y_, z_ = tcp[key + 1, 0, 0], tcp[key + 1, 0, 1], tcp[key + 1, 0, 2]
-        out[key] = math.sqrt(x_ * x_ + y_ * y_ + z_ * z_)
-    out[3] = max(abs(qdot[0, 0]), abs(qdot[0, 1]), abs(qdot[0, 2]))
-    out[4] = max(abs(qddot[0, 0]), abs(qddot[0, 1]), abs(qddot[0, 2]))
-    return state
+        first, second = _quadratic_roots(60.0 * c[5, j], 24.0 * c[4, j], 6.0 * c[3, j])
+        cuts = (0.0, min(max(first, 0.0), length), min(max(second, 0.0), length), length)
+        for cut in cuts:
+            speed = max(speed, abs(_polynomial(c, j, cut, 1)))
+            accel = max(accel, abs(_polynomial(c, j, cut, 2)))
+        for piece in range(3):
+            low, high = cuts[piece], cuts[piece + 1]
+            at_low, at_high = _polynomial(c, j, low, 2), _polynomial(c, j, high, 2)
+            if high <= low or (at_low > 0.0) == (at_high > 0.0):
+                continue
+            for _ in range(_BISECTIONS):
+                middle = 0.5 * (low + high)
+                if (_polynomial(c, j, middle, 2) > 0.0) == (at_low > 0.0):
+                    low = middle
+                else:
+                    high = middle
+            speed = max(speed, abs(_polynomial(c, j, 0.5 * (low + high), 1)))
+    return speed, accel
+
+
+@kernel
+def _quadratic_roots(a, b, c):
+    """Return the real roots of ``a x^2 + b x + c`` in increasing order (inf where none)."""
+    if a == 0.0:
+        root = -c / b if b != 0.0 else np.inf
+        return root, np.inf
+    discriminant = b * b - 4.0 * a * c
+    if discriminant < 0.0:
+        return np.inf, np.inf
+    # The root without cancellation, then the other from their product.
+    half = -0.5 * (b + math.copysign(math.sqrt(discriminant), b))
+    first = half / a
+    second = c / half if half != 0.0 else first
+    return min(first, second), max(first, second)
+
+
+@kernel
+def _executed_tcp(c, x, order, rx, ry, offset, upper, forearm_sq, coplanar):
+    """
+    Return (status, TCP speed, acceleration, jerk norm) of quintic ``c`` (6, 3) at ``x``.
+
+    :func:`~ellipath_ros.core.kinematics._tcp_state` of the quintic's joint position and
+    derivatives; derivatives above ``order`` (1 to 3) are not computed (0).
+    """
+    state, _, velocity, acceleration, jerk = _tcp_state(
+        (_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0)),
+        (_polynomial(c, 0, x, 1), _polynomial(c, 1, x, 1), _polynomial(c, 2, x, 1)),
+        (_polynomial(c, 0, x, 2), _polynomial(c, 1, x, 2), _polynomial(c, 2, x, 2)),
+        (_polynomial(c, 0, x, 3), _polynomial(c, 1, x, 3), _polynomial(c, 2, x, 3)),
+        rx, ry, offset, upper, forearm_sq, coplanar, order)
+    return state, _norm(velocity), _norm(acceleration), _norm(jerk)
+
+
+@kernel
+def _executed_value(c, x, key, rx, ry, offset, upper, forearm_sq, coplanar):
+    """Return (status, value) of TCP quantity ``key`` (0 speed, 1 acceleration, 2 jerk)."""
+    state, speed, accel, jerk = _executed_tcp(c, x, key + 1, rx, ry, offset, upper,
+                                              forearm_sq, coplanar)
+    return state, (speed, accel, jerk)[key]
+
+
+@kernel
+def _norm(vector):
+    """Return the Euclidean norm of a 3-tuple."""
+    return math.sqrt(vector[0] * vector[0] + vector[1] * vector[1] + vector[2] * vector[2])

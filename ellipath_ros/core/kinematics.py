@@ -317,7 +317,7 @@ def _forward(q, geometry, name, strict=True):
 
 
 def _kernel_geometry(geometry):
-    """Return the dimensions the compiled rows take, in :func:`_tcp_row`'s order."""
+    """Return the dimensions the compiled rows take, in :func:`_tcp_state`'s order."""
     return (_RADIAL_X, _RADIAL_Y, geometry.base_radius - geometry.effector_radius,
             geometry.upper_arm, geometry.forearm ** 2,
             _SINGULARITY_TOLERANCE * geometry.forearm ** 3)
@@ -628,12 +628,22 @@ _ASSEMBLED, _COLLINEAR, _APART, _ABOVE, _COPLANAR = range(5)
 @kernel
 def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, points, row):
     """Write the TCP of joint angles (q0, q1, q2) into ``points[row]``; return its status."""
-    radial0 = offset + upper * math.cos(q0)
-    radial1 = offset + upper * math.cos(q1)
-    radial2 = offset + upper * math.cos(q2)
-    height0 = -upper * math.sin(q0)
-    height1 = -upper * math.sin(q1)
-    height2 = -upper * math.sin(q2)
+    status, x, y, z = _forward_point(math.cos(q0), math.sin(q0), math.cos(q1), math.sin(q1),
+                                     math.cos(q2), math.sin(q2), rx, ry, offset, upper,
+                                     forearm_sq)
+    points[row, 0], points[row, 1], points[row, 2] = x, y, z
+    return status
+
+
+@kernel
+def _forward_point(cos0, sin0, cos1, sin1, cos2, sin2, rx, ry, offset, upper, forearm_sq):
+    """Return (status, x, y, z): the TCP of joint angles given by their cosines and sines."""
+    radial0 = offset + upper * cos0
+    radial1 = offset + upper * cos1
+    radial2 = offset + upper * cos2
+    height0 = -upper * sin0
+    height1 = -upper * sin1
+    height2 = -upper * sin2
     cx2, cy2 = radial2 * rx[2], radial2 * ry[2]
     ax, ay, az = radial0 * rx[0] - cx2, radial0 * ry[0] - cy2, height0 - height2
     bx, by, bz = radial1 * rx[1] - cx2, radial1 * ry[1] - cy2, height1 - height2
@@ -652,16 +662,15 @@ def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, points, row):
     down = math.sqrt(0.0 if height_sq < 0.0 else height_sq) / math.sqrt(safe_sq)
     if nz < 0.0:
         down = -down
-    points[row, 0] = cx2 + tx - down * nx
-    points[row, 1] = cy2 + ty - down * ny
-    points[row, 2] = height2 + tz - down * nz
+    x, y, z = cx2 + tx - down * nx, cy2 + ty - down * ny, height2 + tz - down * nz
+    status = _ASSEMBLED
     if collinear:
-        return _COLLINEAR
-    if height_sq < 0.0:
-        return _APART
-    if points[row, 2] >= 0.0:
-        return _ABOVE
-    return _ASSEMBLED
+        status = _COLLINEAR
+    elif height_sq < 0.0:
+        status = _APART
+    elif z >= 0.0:
+        status = _ABOVE
+    return status, x, y, z
 
 
 @kernel
@@ -683,90 +692,127 @@ def _tcp_rows(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplana
     A row that cannot be assembled is NaN throughout; a coplanar one (``|det A|``
     below ``coplanar``) has NaN derivatives, as ``1 / NaN`` gives in the vectorised form.
     """
-    scratch = (np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),
-               np.empty((3, 3)), np.empty(3), np.empty(3))
     for row in range(q.shape[0]):
-        status[row] = _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq,
-                               coplanar, points, velocity, acceleration, jerk,
-                               scratch)
+        state, p, v, a, j = _tcp_state(
+            (q[row, 0], q[row, 1], q[row, 2]), (qdot[row, 0], qdot[row, 1], qdot[row, 2]),
+            (qddot[row, 0], qddot[row, 1], qddot[row, 2]),
+            (qdddot[row, 0], qdddot[row, 1], qdddot[row, 2]), rx, ry, offset, upper,
+            forearm_sq, coplanar, 3)
+        status[row] = state
+        for axis in range(3):
+            points[row, axis], velocity[row, axis] = p[axis], v[axis]
+            acceleration[row, axis], jerk[row, axis] = a[axis], j[axis]
 
 
 @kernel
-def _tcp_row(q, qdot, qddot, qdddot, row, rx, ry, offset, upper, forearm_sq, coplanar, points,
-             velocity, acceleration, jerk, scratch):
+def _tcp_state(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplanar, order):
     """
-    :func:`tcp_derivatives` of row ``row`` of the (N, 3) arrays; return its status.
+    :func:`tcp_derivatives` of one joint state; return (status, p, v, a, j).
 
-    ``scratch`` holds work arrays: the forearm vectors s, the elbow derivatives b and c
-    (``[axis, arm]``), the columns of ``A^-1 det A`` (``[k, axis]``), the forearm rates
-    (3, 3) each, a right-hand side and a forearm acceleration (3,).
+    ``q`` and its time derivatives are 3-tuples (one entry per arm); so are the TCP
+    position and its derivatives returned. Derivatives above ``order`` (1 to 3) are
+    not computed (returned as 0). A pose that cannot be assembled has a NaN position
+    and derivatives; a coplanar one (``|det A|`` below ``coplanar``) NaN derivatives.
+    Plain floats throughout: the per-arm vectors of :func:`_arm_vectors` and the columns
+    of ``A^-1 det A`` stay in registers.
     """
-    s, b, c, columns, rate, rhs, accel = scratch
-    state = _forward_row(q[row, 0], q[row, 1], q[row, 2], rx, ry, offset, upper, forearm_sq,
-                         points, row)
+    trig = ((math.cos(q[0]), math.sin(q[0])), (math.cos(q[1]), math.sin(q[1])),
+            (math.cos(q[2]), math.sin(q[2])))
+    state, px, py, pz = _forward_point(trig[0][0], trig[0][1], trig[1][0], trig[1][1],
+                                       trig[2][0], trig[2][1], rx, ry, offset, upper,
+                                       forearm_sq)
     if state != _ASSEMBLED:
-        points[row, :] = np.nan
-    px, py, pz = points[row, 0], points[row, 1], points[row, 2]
-    for arm in range(3):
-        cos_q, sin_q = math.cos(q[row, arm]), math.sin(q[row, arm])
-        reach = -offset - upper * cos_q
-        upper_sin, upper_cos = upper * sin_q, upper * cos_q
-        s[0, arm] = px + reach * rx[arm]
-        s[1, arm] = py + reach * ry[arm]
-        s[2, arm] = pz + upper_sin
-        b[0, arm] = -upper_sin * rx[arm]
-        b[1, arm] = -upper_sin * ry[arm]
-        b[2, arm] = -upper_cos
-        c[0, arm] = -upper_cos * rx[arm]
-        c[1, arm] = -upper_cos * ry[arm]
-        c[2, arm] = upper_sin
-    for k in range(3):
-        first, second = (k + 1) % 3, (k + 2) % 3
-        x, y, z = s[0, first], s[1, first], s[2, first]
-        u, v, w = s[0, second], s[1, second], s[2, second]
-        columns[k, 0] = y * w - z * v
-        columns[k, 1] = z * u - x * w
-        columns[k, 2] = x * v - y * u
-    determinant = 0.0 + s[0, 0] * columns[0, 0] + s[1, 0] * columns[0, 1] + (
-        s[2, 0] * columns[0, 2])
+        px, py, pz = np.nan, np.nan, np.nan
+    arms = (_arm_vectors(px, py, pz, trig[0][0], trig[0][1], rx[0], ry[0], offset, upper),
+            _arm_vectors(px, py, pz, trig[1][0], trig[1][1], rx[1], ry[1], offset, upper),
+            _arm_vectors(px, py, pz, trig[2][0], trig[2][1], rx[2], ry[2], offset, upper))
+    # Columns k of A^-1 det A: s_(k+1) x s_(k+2).
+    columns = (_cross(arms[1], arms[2]), _cross(arms[2], arms[0]), _cross(arms[0], arms[1]))
+    s0 = arms[0]
+    determinant = 0.0 + s0[0] * columns[0][0] + s0[1] * columns[0][1] + s0[2] * columns[0][2]
     singular = abs(determinant) < coplanar
     if singular and state == _ASSEMBLED:
         state = _COPLANAR
     inverse_det = 1.0 / (np.nan if singular else determinant)
-    for arm in range(3):
-        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-        rhs[arm] = s_b * qdot[row, arm]
-    _solve(columns, rhs, inverse_det, velocity, row)
-    for arm in range(3):
-        for axis in range(3):
-            rate[axis, arm] = velocity[row, axis] - b[axis, arm] * qdot[row, arm]
-        rate_sq = (rate[0, arm] * rate[0, arm] + rate[1, arm] * rate[1, arm]
-                   + rate[2, arm] * rate[2, arm])
-        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-        rhs[arm] = s_c * qdot[row, arm] * qdot[row, arm] + s_b * qddot[row, arm] - rate_sq
-    _solve(columns, rhs, inverse_det, acceleration, row)
-    for arm in range(3):
-        w_dot, w_ddot = qdot[row, arm], qddot[row, arm]
-        for axis in range(3):
-            accel[axis] = (acceleration[row, axis] - c[axis, arm] * w_dot * w_dot
-                           - b[axis, arm] * w_ddot)
-        rate_accel = (rate[0, arm] * accel[0] + rate[1, arm] * accel[1]
-                      + rate[2, arm] * accel[2])
-        s_b = s[0, arm] * b[0, arm] + s[1, arm] * b[1, arm] + s[2, arm] * b[2, arm]
-        s_c = s[0, arm] * c[0, arm] + s[1, arm] * c[1, arm] + s[2, arm] * c[2, arm]
-        rhs[arm] = (s_b * (qdddot[row, arm] - w_dot * w_dot * w_dot) + 3.0 * s_c * w_dot * w_ddot
-                    - 3.0 * rate_accel)
-    _solve(columns, rhs, inverse_det, jerk, row)
-    return state
+    zero = (0.0, 0.0, 0.0)
+    velocity = _solve(_speed_rhs(arms[0], qdot[0]), _speed_rhs(arms[1], qdot[1]),
+                      _speed_rhs(arms[2], qdot[2]), columns, inverse_det)
+    if order < 2:
+        return state, (px, py, pz), velocity, zero, zero
+    acceleration = _solve(_accel_rhs(arms[0], qdot[0], qddot[0], velocity),
+                          _accel_rhs(arms[1], qdot[1], qddot[1], velocity),
+                          _accel_rhs(arms[2], qdot[2], qddot[2], velocity), columns,
+                          inverse_det)
+    if order < 3:
+        return state, (px, py, pz), velocity, acceleration, zero
+    jerk = _solve(_jerk_rhs(arms[0], qdot[0], qddot[0], qdddot[0], velocity, acceleration),
+                  _jerk_rhs(arms[1], qdot[1], qddot[1], qdddot[1], velocity, acceleration),
+                  _jerk_rhs(arms[2], qdot[2], qddot[2], qdddot[2], velocity, acceleration),
+                  columns, inverse_det)
+    return state, (px, py, pz), velocity, acceleration, jerk
 
 
 @kernel
-def _solve(columns, rhs, inverse_det, out, row):
-    """Write A^-1 rhs (``columns`` of A^-1 det A, ``inverse_det`` = 1 / det A) to out[row]."""
-    for axis in range(3):
-        out[row, axis] = (rhs[0] * columns[0, axis] + rhs[1] * columns[1, axis]
-                          + rhs[2] * columns[2, axis]) * inverse_det
+def _arm_vectors(px, py, pz, cos_q, sin_q, rx, ry, offset, upper):
+    """
+    Return arm's forearm vector s, elbow derivatives b and c by q, s.b and s.c (11 floats).
+
+    ``s = C - B`` (effector joint minus elbow), ``b = dB/dq``, ``c = d^2B/dq^2``.
+    """
+    reach = -offset - upper * cos_q
+    upper_sin, upper_cos = upper * sin_q, upper * cos_q
+    sx, sy, sz = px + reach * rx, py + reach * ry, pz + upper_sin
+    bx, by, bz = -upper_sin * rx, -upper_sin * ry, -upper_cos
+    cx, cy, cz = -upper_cos * rx, -upper_cos * ry, upper_sin
+    return (sx, sy, sz, bx, by, bz, cx, cy, cz, sx * bx + sy * by + sz * bz,
+            sx * cx + sy * cy + sz * cz)
+
+
+@kernel
+def _cross(first, second):
+    """Return the cross product of the s vectors (entries 0-2) of two arms."""
+    x, y, z = first[0], first[1], first[2]
+    u, v, w = second[0], second[1], second[2]
+    return y * w - z * v, z * u - x * w, x * v - y * u
+
+
+@kernel
+def _speed_rhs(arm, rate):
+    """Right-hand side of ``s . p_dot = (s . b) q_dot`` for one arm."""
+    return arm[9] * rate
+
+
+@kernel
+def _accel_rhs(arm, rate, rate_dot, velocity):
+    """Right-hand side of ``s . p_ddot = s . (c q_dot^2 + b q_ddot) - |s_dot|^2``."""
+    rate_x = velocity[0] - arm[3] * rate
+    rate_y = velocity[1] - arm[4] * rate
+    rate_z = velocity[2] - arm[5] * rate
+    rate_sq = rate_x * rate_x + rate_y * rate_y + rate_z * rate_z
+    return arm[10] * rate * rate + arm[9] * rate_dot - rate_sq
+
+
+@kernel
+def _jerk_rhs(arm, rate, rate_dot, rate_ddot, velocity, acceleration):
+    """Right-hand side of the jerk row (see :func:`tcp_derivatives`) for one arm."""
+    rate_x = velocity[0] - arm[3] * rate
+    rate_y = velocity[1] - arm[4] * rate
+    rate_z = velocity[2] - arm[5] * rate
+    accel_x = acceleration[0] - arm[6] * rate * rate - arm[3] * rate_dot
+    accel_y = acceleration[1] - arm[7] * rate * rate - arm[4] * rate_dot
+    accel_z = acceleration[2] - arm[8] * rate * rate - arm[5] * rate_dot
+    rate_accel = rate_x * accel_x + rate_y * accel_y + rate_z * accel_z
+    return (arm[9] * (rate_ddot - rate * rate * rate) + 3.0 * arm[10] * rate * rate_dot
+            - 3.0 * rate_accel)
+
+
+@kernel
+def _solve(rhs0, rhs1, rhs2, columns, inverse_det):
+    """Return A^-1 rhs (``columns`` of A^-1 det A, ``inverse_det`` = 1 / det A)."""
+    first, second, third = columns
+    return ((rhs0 * first[0] + rhs1 * second[0] + rhs2 * third[0]) * inverse_det,
+            (rhs0 * first[1] + rhs1 * second[1] + rhs2 * third[1]) * inverse_det,
+            (rhs0 * first[2] + rhs1 * second[2] + rhs2 * third[2]) * inverse_det)
 
 
 # Status codes of inverse kinematics of a row (:func:`_ik_row`, :func:`_rate_row`), in the

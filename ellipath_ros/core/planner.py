@@ -38,7 +38,7 @@ from .joint_trajectory import (
     JointTrajectoryData, minimal_knots, MotionSamples, on_whole_nanoseconds,
     quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    _ASSEMBLED, _forward_row, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
+    _ASSEMBLED, _forward_point, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
     forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
     largest_magnitude_per_row)
 from .limits import CartesianLimits
@@ -81,6 +81,11 @@ _SAME_POINT = 1e-6
 # kinematics) is checked against the safe workspace: at 4 m/s the TCP moves 0.4 mm per step,
 # so between two samples a bound is crossed by at most max_speed * step / 2 more.
 _WORKSPACE_CHECK_PERIOD = 1e-4
+# Periods per block of that check whose two ends, if inside by the distance the TCP covers in
+# half a block (the executed peak speed times this margin), stand for the whole block: only the
+# blocks near a bound are checked at every period (same result, some 10 times fewer samples).
+_WORKSPACE_CHECK_STRIDE = 10
+_WORKSPACE_SPEED_MARGIN = 1.01
 # The executed motion may cross a workspace bound by this much at a sample [m]: JTC's
 # interpolation wobbles by micrometres about a vertical segment on the boundary (a pick at
 # exactly the workspace radius); this is the default knot_tolerance, the check's resolution.
@@ -413,22 +418,34 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
                                                      samples.scaled(slowdown, motion))
         else:
             trajectory, table = _slowed_points(trajectory, table, factor)
-    _check_executed_workspace(trajectory, config, leg)
+    _check_executed_workspace(trajectory, config, leg, float(table[:, 0].max()))
     knot_positions = samples.tcp_positions(trajectory.time_from_start / slowdown)
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown, executed)
 
 
-def _check_executed_workspace(trajectory, config, leg):
-    """Raise WorkspaceError if JTC's interpolation of ``trajectory`` leaves the workspace."""
+def _check_executed_workspace(trajectory, config, leg, speed=None):
+    """
+    Raise WorkspaceError if JTC's interpolation of ``trajectory`` leaves the workspace.
+
+    Checked at every ``_WORKSPACE_CHECK_PERIOD``; with ``speed``, the largest executed TCP
+    speed [m/s], only where a sample every ``_WORKSPACE_CHECK_STRIDE`` periods is within
+    the distance the TCP can cover in half that stride of a bound (the others are inside
+    at every instant, not only at the samples), with the same result.
+    """
     times = trajectory.time_from_start
     count = max(int(math.ceil((times[-1] - times[0]) / _WORKSPACE_CHECK_PERIOD)) + 1, 2)
     t = np.linspace(times[0], times[-1], count)
+    stride, margin = 1, 0.0
+    if speed is not None and math.isfinite(speed):
+        stride = _WORKSPACE_CHECK_STRIDE
+        margin = _WORKSPACE_SPEED_MARGIN * max(speed, 0.0) * stride * (t[1] - t[0]) / 2.0
     workspace = config.workspace
     if _first_outside(times, trajectory.positions, trajectory.velocities,
-                      trajectory.accelerations, t, *_kernel_geometry(config.geometry)[:5],
-                      workspace.radius, workspace.z_min, workspace.z_max, workspace.box_table(),
+                      trajectory.accelerations, t, stride, margin,
+                      *_kernel_geometry(config.geometry)[:5], workspace.radius, workspace.z_min,
+                      workspace.z_max, workspace.box_table(),
                       _EXECUTED_WORKSPACE_TOLERANCE) < 0:
         return
     # Named as the vectorised check names it: the first sample out of reach or outside.
@@ -439,38 +456,63 @@ def _check_executed_workspace(trajectory, config, leg):
 
 
 @kernel
-def _first_outside(knots, positions, velocities, accelerations, times, rx, ry, offset, upper,
-                   forearm_sq, radius, z_min, z_max, boxes, tolerance):
+def _first_outside(knots, positions, velocities, accelerations, times, stride, margin, rx, ry,
+                   offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
     """
-    Return the first of ``times`` (sorted) whose executed TCP leaves the workspace, or -1.
+    Return the first of ``times`` (evenly spaced) whose executed TCP leaves the workspace, or -1.
 
     The executed TCP is the forward kinematics of JTC's quintic through the knots (the last
     point held from the last knot on); a pose that cannot be assembled counts as outside.
+    The times are taken in blocks of ``stride`` intervals: a block whose two ends are
+    inside by ``margin`` (at least the distance the TCP covers in half a block) is inside
+    throughout; the samples of any other block are checked one by one, in order.
     """
     c = np.empty((6, 3))
-    point = np.empty((1, 3))
-    final = knots.size - 1
-    segment = -1
-    for row in range(times.size):
-        time = times[row]
-        if time >= knots[final] or final == 0:
-            joints = (positions[final, 0], positions[final, 1], positions[final, 2])
-        else:
-            wanted = segment if segment >= 0 else 0
-            while wanted < final - 1 and knots[wanted + 1] <= time:
-                wanted += 1
-            if wanted != segment:
-                segment = wanted
-                _fill_quintic(knots[segment + 1] - knots[segment], positions, positions,
-                              velocities, velocities, accelerations, accelerations, segment,
-                              segment + 1, c)
-            x = max(time - knots[segment], 0.0)
-            joints = (_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0))
-        if _forward_row(joints[0], joints[1], joints[2], rx, ry, offset, upper, forearm_sq,
-                        point, 0) != _ASSEMBLED or not inside(
-                point[0, 0], point[0, 1], point[0, 2], radius, z_min, z_max, boxes, tolerance):
-            return row
+    segment = np.full(1, -1)
+    last = times.size - 1
+    start = 0
+    start_clear = _executed_inside(knots, positions, velocities, accelerations, times[0], c,
+                                   segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
+                                   z_max, boxes, tolerance - margin)
+    while start < last:
+        end = min(start + stride, last)
+        end_clear = _executed_inside(knots, positions, velocities, accelerations, times[end],
+                                     c, segment, rx, ry, offset, upper, forearm_sq, radius,
+                                     z_min, z_max, boxes, tolerance - margin)
+        if not (start_clear and end_clear):
+            for row in range(start, end + 1):
+                if not _executed_inside(knots, positions, velocities, accelerations,
+                                        times[row], c, segment, rx, ry, offset, upper,
+                                        forearm_sq, radius, z_min, z_max, boxes, tolerance):
+                    return row
+        start, start_clear = end, end_clear
     return -1
+
+
+@kernel
+def _executed_inside(knots, positions, velocities, accelerations, time, c, segment, rx, ry,
+                     offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
+    """
+    Tell whether the executed TCP at ``time`` is assembled and in the workspace.
+
+    ``c`` (6, 3) holds the quintic of segment ``segment[0]`` (-1: none yet), refilled
+    when ``time`` is in another segment.
+    """
+    final = knots.size - 1
+    if time >= knots[final] or final == 0:
+        joints = (positions[final, 0], positions[final, 1], positions[final, 2])
+    else:
+        wanted = min(max(np.searchsorted(knots, time, side='right') - 1, 0), final - 1)
+        if wanted != segment[0]:
+            segment[0] = wanted
+            _fill_quintic(knots[wanted + 1] - knots[wanted], positions, positions, velocities,
+                          velocities, accelerations, accelerations, wanted, wanted + 1, c)
+        x = max(time - knots[wanted], 0.0)
+        joints = (_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0))
+    status, x_, y_, z_ = _forward_point(
+        math.cos(joints[0]), math.sin(joints[0]), math.cos(joints[1]), math.sin(joints[1]),
+        math.cos(joints[2]), math.sin(joints[2]), rx, ry, offset, upper, forearm_sq)
+    return status == _ASSEMBLED and inside(x_, y_, z_, radius, z_min, z_max, boxes, tolerance)
 
 
 def _spaced(times, added):
@@ -549,8 +591,9 @@ def _joint_points(motion, config, bounds, samples=None):
     a step of the jerk, and reaches up to 1.7 times the true jerk across one. So every
     segment whose executed peaks (:func:`executed_peaks`) break ``bounds`` and exceed the
     planned motion's there by more than ``_QUINTIC_EXCESS`` gets points at the jerk steps
-    inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle if it has
-    none, for up to ``_KNOT_ROUNDS`` rounds and while a round lowers an exceeded peak.
+    inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle (the sample
+    nearest to it) if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round
+    lowers an exceeded peak.
     Samples output is checked, not changed. The table (S, 5) has the peaks of each segment
     in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
     are taken when given, else made here.
@@ -578,12 +621,21 @@ def _joint_points(motion, config, bounds, samples=None):
             # Only a leg with a broken segment needs its jerk steps.
             step_times, step_sizes = motion.jerk_steps()
             steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
-        added = []
+        added, halved = [], []
         for index in broken:
             start, end = times[index], times[index + 1]
             # A step closer than the gap to an end is at that point already.
             inside = steps[(steps > start + _KNOT_MIN_GAP) & (steps < end - _KNOT_MIN_GAP)]
-            added.extend(inside if inside.size else [0.5 * (start + end)])
+            if inside.size:
+                added.extend(inside)
+            else:
+                halved.append(index)
+        if halved:
+            # The middle of a segment without a step: the sample nearest to it, if in the
+            # middle half of the segment (its state is known), else the middle itself.
+            halved = np.array(halved)
+            added.extend(samples.states(0.5 * (times[halved] + times[halved + 1]),
+                                        times[halved], times[halved + 1])[0])
         trajectory = _with_points(trajectory, samples, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
