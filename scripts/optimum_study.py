@@ -54,7 +54,11 @@ or join cap, as in ``ellipath bench``):
 - ``calibrate``: the paper join (25 m/s² step) on both cycles: scan and optimum.
 - ``g2``: the G2 join (default ``join_tolerance`` 0.5 mm): scan and optimum, time per
   region (lift, T1 transition, arc, T2 transition, descent) and b(s) side by side near T1.
-- ``tolerance``: the G2 optimum and the scan at other join tolerances and jerk limits.
+- ``tolerance``: the G2 optimum and the scan at other join tolerances and jerk limits
+  (``VARIANTS``).
+
+Each optimum is an upper bound of the true one (a feasible motion; SLP finds a local optimum
+and stops after ``MAX_STEPS`` steps or when the time stalls) and takes a few CPU minutes.
 
 Limits are the bench's (4 m/s, 50 m/s², 5000 m/s³) scaled by the planner's own margins
 (``_SPEED_MARGIN``, ``_ACCEL_MARGIN``, ``_JERK_MARGIN``), which the scan keeps too; ``--full``
@@ -103,7 +107,7 @@ GAUSS_NODES, GAUSS_WEIGHTS = np.polynomial.legendre.leggauss(16)
 # Regions reported: millimetres past T1 whose b(s) is printed side by side.
 PROFILE_MM = (0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 15.0, 20.0, 30.0)
 # (join_tolerance [m], max_jerk [m/s³]) of the tolerance study.
-VARIANTS = ((2e-3, 5000.0), (4e-3, 5000.0), (5e-4, 10000.0))
+VARIANTS = ((2e-3, 5000.0), (4e-3, 5000.0), (8e-3, 5000.0), (5e-4, 10000.0), (5e-4, 20000.0))
 
 
 def planner_limits(limits):
