@@ -309,14 +309,12 @@ def _format_value(value):
     return str(value)
 
 
-def diagnostic_array(stamp, name, hardware_id, level, message, values):
+def diagnostic_status(name, hardware_id, level, message, values):
     """
-    Build a diagnostic_msgs/DiagnosticArray holding one status.
+    Build one diagnostic_msgs/DiagnosticStatus.
 
     Parameters
     ----------
-    stamp : builtin_interfaces.msg.Time
-        Header stamp.
     name, hardware_id : str
         Status name and hardware id.
     level : bytes
@@ -327,9 +325,38 @@ def diagnostic_array(stamp, name, hardware_id, level, message, values):
         Key/value details (see :func:`key_values`).
 
     """
-    status = DiagnosticStatus(level=level, name=name, message=message,
-                              hardware_id=hardware_id, values=key_values(values))
-    return DiagnosticArray(header=Header(stamp=stamp), status=[status])
+    return DiagnosticStatus(level=level, name=name, message=message,
+                            hardware_id=hardware_id, values=key_values(values))
+
+
+def diagnostic_array(stamp, statuses):
+    """Build a diagnostic_msgs/DiagnosticArray of ``statuses`` stamped ``stamp`` (Time)."""
+    return DiagnosticArray(header=Header(stamp=stamp), status=list(statuses))
+
+
+def number_ranges(numbers):
+    """
+    Write increasing integers as ranges: ``[5, 6, 7, 9]`` gives ``'5-7 9'``.
+
+    The inverse of :func:`numbers_in_ranges`; a status naming many pairs stays short.
+    """
+    ranges = []
+    for number in numbers:
+        if ranges and number == ranges[-1][1] + 1:
+            ranges[-1][1] = number
+        else:
+            ranges.append([number, number])
+    return ' '.join(str(first) if first == last else f'{first}-{last}'
+                    for first, last in ranges)
+
+
+def numbers_in_ranges(text):
+    """Return the integers written by :func:`number_ranges` (``'5-7 9'``: 5, 6, 7, 9)."""
+    numbers = []
+    for item in text.split():
+        first, _, last = item.partition('-')
+        numbers.extend(range(int(first), int(last or first) + 1))
+    return numbers
 
 
 def _points(array):

@@ -86,7 +86,9 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 from ellipath_ros.conversions import diagnostic_array
+from ellipath_ros.conversions import diagnostic_status
 from ellipath_ros.conversions import joint_positions_by_name
+from ellipath_ros.conversions import number_ranges
 from ellipath_ros.conversions import path_markers
 from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
@@ -171,9 +173,8 @@ PENDING_PICKS = 12_000
 # Two topics keep no order between them: under load a place can be read before the pick sent
 # ahead of it (2 of 900 two-topic pairs in a 30-minute soak were rejected as unpaired so). A
 # place whose pick has not arrived (stamp pairing) waits this long [s] for it, then is
-# rejected `unpaired` with a status; the intake group checks every PLACE_WAIT_CHECK [s].
+# rejected `unpaired` with a status (checked with the intake statuses, see STATUS_PERIOD).
 PLACE_WAIT = 0.5
-PLACE_WAIT_CHECK = 0.25
 # The release thread polls the clock for this long before a release is due, rather than
 # sleeping until then: a sleeping thread can get a core milliseconds late on a busy machine.
 RELEASE_SPIN = 0.002  # s
@@ -184,6 +185,17 @@ PAIR_TOPICS = ('place_pose', 'pick_place')
 # intake spent on a rejected pair, so a flood was read four times slower and DDS dropped
 # what the node had not read. Every rejection still has its status on /diagnostics.
 REJECTION_LOG_PERIOD = 1.0
+# Intake reads up to this many pose messages per executor callback, straight from the
+# subscriptions (_read_backlog): rclpy's executor spends about 0.5 ms of CPU per callback
+# (building its wait set, a task, a hand-over to a pool thread), five times what taking and
+# checking a pair costs, and in a flood the node read no more than about 200 pairs/s. Bounded,
+# so that the executor still serves the status timer of the same callback group in between.
+INTAKE_BATCH = 100
+# Intake statuses (rejections, dropped picks) are published together, at most one
+# /diagnostics message per this period [s] (a lone rejection at once), and the pairs a full
+# queue rejects in one period share one status that names them all: one DiagnosticArray per
+# pair cost 0.25 ms, more than half of what intake spent on a rejected pair.
+STATUS_PERIOD = 0.1
 # How often a blocked worker thread looks whether the node stops [s].
 WORKER_POLL = 0.1
 # The interpreter's thread switch interval [s]: the release thread wakes at a trajectory's
@@ -276,18 +288,30 @@ class EllipathNode(Node):
         self._status_name = f'{self.get_name()}: plan'
         # (time.monotonic() of the last intake rejection logged, rejections not logged since)
         self._rejection_log = (None, 0)
+        # Intake statuses not yet published (see STATUS_PERIOD), touched only by the intake
+        # callback group: statuses built, and per topic the pairs a full queue rejected with
+        # the first one's reason; when they were last published (time.monotonic()).
+        self._intake_statuses = []
+        self._queue_full = {}  # topic: ([pair numbers], first error text)
+        self._intake_published = -math.inf
 
         # The pose topics share one mutually exclusive group: their order is kept and the
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
         intake_group = MutuallyExclusiveCallbackGroup()
-        self.create_subscription(PoseArray, 'pick_place', self._on_pick_place, INTAKE_QOS,
-                                 callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_QOS,
-                                 callback_group=intake_group)
-        self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_QOS,
-                                 callback_group=intake_group)
-        self.create_timer(PLACE_WAIT_CHECK, self._expire_places, callback_group=intake_group)
+        pick_place = self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
+                                              INTAKE_QOS, callback_group=intake_group)
+        pick = self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_QOS,
+                                        callback_group=intake_group)
+        place = self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_QOS,
+                                         callback_group=intake_group)
+        # What _read_backlog takes, in this order: every pick DDS holds before any place, so
+        # that a place is read after the pick sent before it (stamp pairing).
+        self._intake_routes = ((pick, 'pick_pose', self._take_pick),
+                               (pick_place, 'pick_place', self._take_pick_place),
+                               (place, 'place_pose', self._take_place))
+        self._status_timer = self.create_timer(STATUS_PERIOD, self.publish_intake_statuses,
+                                               callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
@@ -328,6 +352,9 @@ class EllipathNode(Node):
     def request_stop(self):
         """Make the planning and release threads stop; nothing is released from now on."""
         self._sequencer.stop()
+        # Not fired again while the node is destroyed (a firing then was reported as "never
+        # retrieved" at exit); intake statuses are no longer published anyway.
+        self._status_timer.cancel()
 
     def stop_workers(self, timeout=SHUTDOWN_WAIT):
         """Stop the planning and release threads; wait up to ``timeout`` s for each."""
@@ -404,16 +431,47 @@ class EllipathNode(Node):
         return seconds if seconds > 0.0 else self.get_clock().now().nanoseconds * 1e-9
 
     def _on_pick(self, message):
-        """Store a valid pick pose until its place arrives."""
-        self._intake('pick_pose', self._take_pick, message)
+        """Store a valid pick pose until its place arrives; read what else is waiting."""
+        self._read_intake(self._intake_routes[0], message)
 
     def _on_place(self, message):
-        """Pair a place pose with its pick and queue the pair."""
-        self._intake('place_pose', self._take_place, message)
+        """Pair a place pose with its pick and queue the pair; read what else is waiting."""
+        self._read_intake(self._intake_routes[2], message)
 
     def _on_pick_place(self, message):
-        """Queue the pair of a pick_place message."""
-        self._intake('pick_place', self._take_pick_place, message)
+        """Queue the pair of a pick_place message; read what else is waiting."""
+        self._read_intake(self._intake_routes[1], message)
+
+    def _read_intake(self, route, message):
+        """
+        Handle ``message`` (of ``route``), then up to INTAKE_BATCH more that DDS holds.
+
+        Picks first: every pick waiting is read before a place or a pick_place is handled,
+        the executor's own ``message`` included, so that a place's pick, sent before it, has
+        been read (see _intake_routes). The executor, which would hand each message to a
+        callback of its own, finds these subscriptions empty afterwards.
+        """
+        picks = self._intake_routes[0]
+        for handled in range(1, INTAKE_BATCH + 1):
+            if route is not picks:
+                while (pick := _take(picks[0])) is not None:
+                    self._intake(picks[1], picks[2], pick)
+            self._intake(route[1], route[2], message)
+            if handled == INTAKE_BATCH:
+                break
+            route, message = self._next_intake()
+            if message is None:
+                break
+        if time.monotonic() - self._intake_published >= STATUS_PERIOD:
+            self.publish_intake_statuses()
+
+    def _next_intake(self):
+        """Take the next pose message DDS holds, in _intake_routes' order: (route, message)."""
+        for route in self._intake_routes:
+            message = _take(route[0])
+            if message is not None:
+                return route, message
+        return None, None
 
     def _intake(self, topic, handler, message):
         """
@@ -427,9 +485,8 @@ class EllipathNode(Node):
             handler(message, settings)
         except QueueFullError as error:
             self._log_rejection(f'{topic} rejected: {error}')
-            self._publish_status(DiagnosticStatus.WARN, str(error),
-                                 {'topic': topic, 'kind': error.kind,
-                                  **self._queue_values()})
+            numbers, _ = self._queue_full.setdefault(topic, ([], str(error)))
+            numbers.append(error.pair)
         except EllipathError as error:
             self._log_rejection(f'{topic} rejected: {error}')
             values = {'topic': topic, 'kind': error.kind}
@@ -437,8 +494,7 @@ class EllipathNode(Node):
                 values['pair'] = self._sequencer.reject(error.kind)
             else:
                 self._pairing.reject_pick()
-            self._publish_status(DiagnosticStatus.ERROR, str(error),
-                                 {**values, **self._queue_values()})
+            self._intake_status(DiagnosticStatus.ERROR, str(error), values)
         except Exception as error:  # a bug in one message must not stop the node
             if topic in PAIR_TOPICS:
                 self._sequencer.reject('internal')
@@ -447,8 +503,42 @@ class EllipathNode(Node):
             self._report_internal(topic, error)
         for kind, text in self._pairing.take_notices():
             self._log_rejection(text)
-            self._publish_status(DiagnosticStatus.WARN, text,
-                                 {'topic': 'pick_pose', 'kind': kind, **self._queue_values()})
+            self._intake_status(DiagnosticStatus.WARN, text,
+                                {'topic': 'pick_pose', 'kind': kind})
+
+    def _intake_status(self, level, message, values):
+        """Keep an intake status, with the ledger as it is now, for publish_intake_statuses."""
+        self._intake_statuses.append(diagnostic_status(
+            self._status_name, self.get_fully_qualified_name(), level, message,
+            {**values, **self._queue_values()}))
+
+    def publish_intake_statuses(self):
+        """
+        Publish the intake statuses kept since the last call, in one /diagnostics message.
+
+        The pairs a full queue rejected are named together, per topic, in one WARN status
+        (``pairs``: their numbers as ranges; the reason given for the first one), with the
+        ledger as it is now. Called by the intake callbacks and by a timer every
+        STATUS_PERIOD; intake callback group only.
+        """
+        self._expire_places()
+        self._intake_published = time.monotonic()
+        statuses, self._intake_statuses = self._intake_statuses, []
+        for topic, (numbers, reason) in self._queue_full.items():
+            values = {'topic': topic, 'kind': QueueFullError.kind}
+            if len(numbers) == 1:
+                values['pair'] = numbers[0]
+            else:
+                values.update(pairs=number_ranges(numbers), pair_count=len(numbers))
+                reason = (f'{len(numbers)} pairs rejected as {QueueFullError.kind} (pairs '
+                          f'{values["pairs"]}), each in turn; the first: {reason}')
+            statuses.append(diagnostic_status(
+                self._status_name, self.get_fully_qualified_name(), DiagnosticStatus.WARN,
+                reason, {**values, **self._queue_values()}))
+        self._queue_full = {}
+        if statuses and not self._sequencer.stopped:
+            self._diagnostics_publisher.publish(diagnostic_array(
+                self.get_clock().now().to_msg(), statuses))
 
     def _log_rejection(self, text):
         """Log an intake rejection, at most one per REJECTION_LOG_PERIOD (see there)."""
@@ -968,8 +1058,8 @@ class EllipathNode(Node):
         if self._sequencer.stopped:
             return
         self._diagnostics_publisher.publish(diagnostic_array(
-            self.get_clock().now().to_msg(), self._status_name,
-            self.get_fully_qualified_name(), level, message, values))
+            self.get_clock().now().to_msg(), [diagnostic_status(
+                self._status_name, self.get_fully_qualified_name(), level, message, values)]))
 
 
 def _delayed_belt_start(motion, delay, frame_id):
@@ -998,6 +1088,13 @@ def _delayed_belt_start(motion, delay, frame_id):
     return dataclasses.replace(motion, trajectory=message.trajectory, details={
         **motion.details, 'message': message, 'metrics': metrics,
         'belt_start': motion.details['belt_start'] + delay})
+
+
+def _take(subscription):
+    """Return the next message DDS holds for ``subscription``, or None (rclpy's executor's way)."""
+    with subscription.handle:
+        taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+    return None if taken is None else taken[0]
 
 
 def _nanoseconds(seconds):

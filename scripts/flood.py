@@ -61,6 +61,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from ellipath_ros.conversions import joint_trajectory_data
+from ellipath_ros.conversions import numbers_in_ranges
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
@@ -136,6 +137,17 @@ def memory_kib(pid):
     except OSError:
         return None
     return memory if 'rss' in memory else None
+
+
+def cpu_seconds(pid):
+    """Return the CPU time (user + system) process ``pid`` has used [s], or None if gone."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            # Fields after the command name (which may hold spaces): utime, stime are 14, 15.
+            fields = stat.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def resident_kib(pid):
@@ -277,12 +289,19 @@ def _values(status):
     return {item.key: item.value for item in status.values}
 
 
-def _status_pair(status, values):
-    """Return the pair number a status is about, or None (pick_pose statuses, clear_queue)."""
+def status_pairs(status, values):
+    """
+    Return the numbers of the pairs a status is about (none: pick_pose, clear_queue).
+
+    ``pair``, or ``pairs`` (ranges: the pairs a full queue rejected in one status period),
+    else a message starting "pair <number>".
+    """
     if 'pair' in values:
-        return int(values['pair'])
+        return [int(values['pair'])]
+    if 'pairs' in values:
+        return numbers_in_ranges(values['pairs'])
     match = PAIR_IN_MESSAGE.match(status.message)
-    return int(match.group(1)) if match else None
+    return [int(match.group(1))] if match else []
 
 
 def check_trajectories(trajectories, sent_ids, geometry):
@@ -339,6 +358,7 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
             time.sleep(0.05)
         time.sleep(0.5)  # discovery is matched both ways by now, give DDS a moment more
         rss = [(0.0, resident_kib(process.pid))]
+        cpu_at_start = cpu_seconds(process.pid)
         memory = []  # one sample per rss_every: see _memory_sample
         offered = int(round(rate * seconds))
         sent, sent_at, invalid = {}, {}, {}
@@ -367,6 +387,7 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
                                       'refused': _refused(sent), 'rss_kib': rss[-1][1]}),
                           file=out, flush=True)
         send_time = time.monotonic() - started
+        node_cpu = {'start': cpu_at_start, 'sending': cpu_seconds(process.pid)}
         expected_pairs = sum(outcome == 'sent' for _, outcome in sent.values())
         # Drain: wait until the node has counted every pair sent and its queue is empty.
         drained = False
@@ -409,6 +430,12 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
     report = _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, answer,
                      log_path)
     report['memory_samples'] = memory
+    loads = [sample['load1'] for sample in memory]
+    report['load_average_1min'] = {'min': min(loads, default=None),
+                                   'max': max(loads, default=None)}
+    # The node's CPU time while pairs were sent (intake, planning and releases together).
+    report['node_cpu_s_while_sending'] = (
+        None if None in node_cpu.values() else round(node_cpu['sending'] - node_cpu['start'], 1))
     report.update(stream=stream, rate_offered=rate, seconds=seconds, pairs_offered=offered,
                   send_time_s=round(send_time, 2), drained=drained,
                   drain_time_s=round(drain_time, 1),
@@ -425,7 +452,8 @@ def _memory_sample(pid, elapsed, offered, recorder):
     received by then, which fill the node's bounded DDS histories (scripts/soak.py).
     """
     return {'t': round(elapsed, 1), 'offered': offered, 'statuses': len(recorder.statuses),
-            'trajectories': len(recorder.trajectories), **(memory_kib(pid) or {})}
+            'trajectories': len(recorder.trajectories), 'load1': os.getloadavg()[0],
+            **(memory_kib(pid) or {})}
 
 
 def _refused(sent):
@@ -458,6 +486,23 @@ def sender_ledger(sent):
             ledger['picks_attempted'] += 1
             ledger['picks_refused' if outcome == 'refused' else 'picks_sent'] += 1
     return ledger
+
+
+def expected_rejections(sent, invalid):
+    """
+    Return how many pairs sent the node must reject, by kind: invalid_input and unpaired.
+
+    A NaN place is invalid_input on both streams, as is a pick_place in a wrong frame; a
+    pick_pose in a wrong frame is rejected itself, and its place, sent, as unpaired. Every
+    other pair sent is valid: none may be rejected as either.
+    """
+    expected = {'invalid_input': 0, 'unpaired': 0}
+    for pair_id, kind in invalid.items():
+        topic, outcome = sent[pair_id]
+        if outcome == 'sent':
+            expected['unpaired' if (topic, kind) == ('two_topic', 'frame')
+                     else 'invalid_input'] += 1
+    return expected
 
 
 def node_ledger(values):
@@ -494,9 +539,7 @@ def _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, an
         kind = values.get('kind', status.message if status.message in (
             'planned', 'released') else 'other')
         kinds[kind] = kinds.get(kind, 0) + 1
-        pair = _status_pair(status, values)
-        if pair is not None:
-            pairs_with_status.add(pair)
+        pairs_with_status.update(status_pairs(status, values))
         if 'queue_length' in values:
             queue_lengths.append(int(values['queue_length']))
         if 'pairs_received' in values:
@@ -512,6 +555,7 @@ def _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, an
             publish_latency.append(float(values['receive_to_publish_latency']))
     counts, pairs_add_up, picks_add_up = node_ledger(counters or {})
     sender = sender_ledger(sent)
+    invalid_rejections = expected_rejections(sent, invalid)
     without_status = sorted(set(range(1, counts.get('pairs_received', 0) + 1))
                             - pairs_with_status)
     rss_values = [value for _, value in rss if value is not None]
@@ -528,6 +572,10 @@ def _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, an
         'pairs_lost_in_transport': sender['pairs_sent'] - counts.get('pairs_received', 0),
         'picks_lost_in_transport': sender['picks_sent'] - counts.get('picks_received', 0),
         'pairs_add_up': pairs_add_up, 'picks_add_up': picks_add_up,
+        # The invalid pairs sent, by the kind the node must reject them as, and what it did.
+        'invalid_rejections': {kind: {'sent': count,
+                                      'rejected': counts.get(f'pairs_rejected_{kind}', 0)}
+                               for kind, count in invalid_rejections.items()},
         'pairs_without_status': len(without_status),
         'pairs_without_status_first': without_status[:10],
         'node_read_all_pairs_at_s': None if all_read_at is None else round(all_read_at, 1),
@@ -552,6 +600,8 @@ def _report(recorder, sent, sent_at, invalid, rss, started, alive, exit_code, an
     }
     report['ok'] = bool(alive and answer is not None and not mispaired
                         and not invalid_trajectories and pairs_add_up and picks_add_up
+                        and all(count['sent'] == count['rejected']
+                                for count in report['invalid_rejections'].values())
                         and not without_status and report['pairs_lost_in_transport'] == 0
                         and report['picks_lost_in_transport'] == 0)
     return report

@@ -35,6 +35,8 @@ from ellipath_ros.conversions import duration_from_seconds
 from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.conversions import key_values
+from ellipath_ros.conversions import number_ranges
+from ellipath_ros.conversions import numbers_in_ranges
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.core.controller import distance_to_paths
 from ellipath_ros.core.controller import executed_tcp
@@ -113,6 +115,14 @@ def test_key_values_format_numbers_and_text():
     values = key_values({'duration': 0.123456789012, 'count': 80, 'policy': 'paper'})
     assert [(item.key, item.value) for item in values] == [
         ('duration', '0.123456789'), ('count', '80'), ('policy', 'paper')]
+
+
+def test_pair_numbers_are_written_as_ranges_and_read_back():
+    assert number_ranges([5, 6, 7, 9, 11, 12]) == '5-7 9 11-12'
+    assert number_ranges([3]) == '3' and number_ranges([]) == ''
+    numbers = [1, 2, 3, 10, 20, 21, 22, 23, 40]
+    assert numbers_in_ranges(number_ranges(numbers)) == numbers
+    assert numbers_in_ranges('') == []
 
 
 # --- the node on a ROS graph ----------------------------------------------------------------
@@ -773,19 +783,59 @@ def test_a_full_queue_rejects_the_newest_pairs_with_a_warning(make_harness):
     statuses = len(harness.statuses)
     for pick, place in BURST[:5]:
         harness.pick_place_publisher.publish(pose_array(pick, place))
-    assert harness.spin_until(lambda: sum(
-        status.level == DiagnosticStatus.WARN for status in harness.statuses) == 2)
-    warnings = [status for status in harness.statuses[statuses:]
-                if status.level == DiagnosticStatus.WARN]
-    for status, number in zip(warnings, (5, 6)):
-        values = values_of(status)
-        assert values['kind'] == 'queue_full' and values['topic'] == 'pick_place'
-        assert f'pair {number}' in status.message and '3 pairs queued' in status.message
+
+    def rejected():
+        """Return the pair numbers named by the WARN statuses so far (queue_full)."""
+        named = []
+        for status in harness.statuses[statuses:]:
+            if status.level == DiagnosticStatus.WARN:
+                values = values_of(status)
+                assert values['kind'] == 'queue_full' and values['topic'] == 'pick_place'
+                assert '3 pairs queued' in status.message, status.message
+                named += ([int(values['pair'])] if 'pair' in values
+                          else numbers_in_ranges(values['pairs']))
+        return named
+
+    # Statuses of one period name their pairs together (node.STATUS_PERIOD).
+    assert harness.spin_until(lambda: len(rejected()) == 2)
+    assert rejected() == [5, 6]
     assert harness.spin_until(lambda: len(harness.received) == 4) and harness.idle()
     harness.spin_for(SETTLE)
     counts = values_of(harness.released_statuses()[-1])
     assert (counts['pairs_received'], counts['pairs_released'], counts['pairs_rejected'],
             counts['pairs_queued']) == ('6', '4', '2', '0')
+
+
+def test_a_backlog_on_both_topics_is_read_in_batches_and_paired_in_full(make_harness):
+    """
+    Picks and places waiting in DDS are read a batch per callback, every pick before a place.
+
+    node.INTAKE_BATCH: the executor's callback reads what else is waiting; picks first, so
+    that no place is read before the pick sent ahead of it (it would be rejected unpaired).
+    """
+    harness = make_harness({'queue_depth': 2, 'place_dwell': 1.0})
+    callbacks, handled = [], []
+    read_intake, intake = harness.node._read_intake, harness.node._intake
+    harness.node._read_intake = lambda *args: (callbacks.append(args), read_intake(*args))
+    harness.node._intake = lambda topic, *args: (handled.append(topic), intake(topic, *args))
+    pairs = 30
+    for number in range(pairs):
+        pick, place = BURST[number % len(BURST)]
+        harness.pick_publisher.publish(pose(pick, stamp=Time(sec=100 + number)))
+        harness.place_publisher.publish(pose(place, stamp=Time(sec=100 + number)))
+    time.sleep(0.5)  # every message in the node's DDS history before the executor spins
+    assert harness.spin_until(lambda: len(handled) == 2 * pairs)
+    assert len(callbacks) < len(handled) / 2, 'each callback reads what else is waiting'
+
+    def counts():
+        """Return the ledger of the status that counted the most pairs."""
+        return max((values_of(status) for status in harness.statuses),
+                   key=lambda values: int(values['pairs_received']), default={})
+
+    assert harness.spin_until(lambda: counts().get('pairs_received') == str(pairs))
+    kinds = {values_of(status).get('kind') for status in harness.statuses}
+    assert 'unpaired' not in kinds and 'queue_full' in kinds
+    assert (counts()['picks_received'], counts()['picks_paired']) == (str(pairs), str(pairs))
 
 
 def test_the_pose_topics_are_read_reliable_keep_all(make_harness):

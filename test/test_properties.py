@@ -352,8 +352,8 @@ def degenerate_pairs(draw):
 @settings(max_examples=PLANS)
 @given(start=st.one_of(st.just(HOME), points), pair=st.one_of(
     st.tuples(points, points), degenerate_pairs()),
-    pick_dwell=st.sampled_from([0.0, 0.0, 0.1, 1e-9]),
-    place_dwell=st.sampled_from([0.0, 0.05]))
+    pick_dwell=st.sampled_from([0.0, 0.0, 0.1, 1e-9, 1e-79]),
+    place_dwell=st.sampled_from([0.0, 0.05, 4e-10]))
 def test_plan_cycle_is_safe_or_rejected_with_a_reason(start, pair, pick_dwell, place_dwell):
     pick, place = pair
     config = PlannerConfig()

@@ -649,8 +649,13 @@ def _joint_points(motion, config, bounds, samples=None):
 
 
 def _hold(trajectory, seconds):
-    """Append a rest point ``seconds`` after the last one (a dwell)."""
-    if seconds <= 0.0:
+    """
+    Append a rest point ``seconds`` after the last one (a dwell).
+
+    A dwell under a nanosecond, the resolution of the message's times, adds nothing: its
+    point would fall on the last one's time (1e-79 s did), which JTC refuses.
+    """
+    if seconds < 1e-9:
         return trajectory
     return _concatenate(trajectory, JointTrajectoryData(
         trajectory.joint_names, np.array([0.0, seconds]),

@@ -73,9 +73,13 @@ class UnpairedPlaceError(EllipathError):
 
 
 class QueueFullError(EllipathError):
-    """The cycle queue holds ``queue_depth`` pairs: the newest pair is rejected."""
+    """The cycle queue holds ``queue_depth`` pairs: the newest pair (``pair``) is rejected."""
 
     kind = 'queue_full'
+
+    def __init__(self, message, pair):
+        super().__init__(message)
+        self.pair = pair
 
 
 class PosePairing:
@@ -561,7 +565,7 @@ class Sequencer:
                 raise QueueFullError(
                     f'pair {self._numbers}: expected room in the cycle queue, got '
                     f'{self._length()} pairs queued (queue_depth {self.depth}): the newest '
-                    'pair is rejected')
+                    'pair is rejected', self._numbers)
             request = PairRequest(self._numbers, np.array(pick, dtype=float),
                                   np.array(place, dtype=float), self.clock(), topic,
                                   latch_time)
