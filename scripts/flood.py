@@ -492,16 +492,17 @@ def expected_rejections(sent, invalid):
     """
     Return how many pairs sent the node must reject, by kind: invalid_input and unpaired.
 
-    A NaN place is invalid_input on both streams, as is a pick_place in a wrong frame; a
-    pick_pose in a wrong frame is rejected itself, and its place, sent, as unpaired. Every
-    other pair sent is valid: none may be rejected as either.
+    A NaN place is invalid_input on both streams, as is a pair in a wrong frame: a pick_pose
+    in a wrong frame is rejected itself, and its place, in the same wrong frame, is rejected
+    as invalid_input for its own frame (a place with no pick waits for it only if it is
+    valid). Every other pair sent is valid: none may be rejected as either (a valid place
+    read before its pick waits for it: unpaired only if its pick was lost).
     """
     expected = {'invalid_input': 0, 'unpaired': 0}
-    for pair_id, kind in invalid.items():
-        topic, outcome = sent[pair_id]
+    for pair_id in invalid:
+        _, outcome = sent[pair_id]
         if outcome == 'sent':
-            expected['unpaired' if (topic, kind) == ('two_topic', 'frame')
-                     else 'invalid_input'] += 1
+            expected['invalid_input'] += 1
     return expected
 
 
