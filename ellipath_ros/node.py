@@ -83,13 +83,13 @@ import traceback
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
-from ellipath_ros.conversions import diagnostic_array
 from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import path_markers
 from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
+from ellipath_ros.conversions import serialized_diagnostic_array
 from ellipath_ros.conversions import serialized_joint_trajectory
 from ellipath_ros.core.compiled import warm_up
 from ellipath_ros.core.conveyor import plan_belt_cycle
@@ -943,7 +943,9 @@ class EllipathNode(Node):
         """Publish one diagnostics status (none once the node stops)."""
         if self._sequencer.stopped:
             return
-        self._diagnostics_publisher.publish(diagnostic_array(
+        # Serialized here: rclpy's conversion of the message object leaked (see
+        # serialized_diagnostic_array).
+        self._diagnostics_publisher.publish(serialized_diagnostic_array(
             self.get_clock().now().to_msg(), self._status_name,
             self.get_fully_qualified_name(), level, message, values))
 
