@@ -533,6 +533,9 @@ class EllipathNode(Node):
             taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving)
             if taken is not None:
                 self._plan_queued(*taken)
+                # After its statuses: the motion is already on its way (see
+                # release_free_memory).
+                release_free_memory()
 
     def _requeue_stale_belt_picks(self, velocity, settings):
         """
@@ -1013,6 +1016,34 @@ def set_malloc_policy(environment=os.environ):
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     return bool(mallopt(_M_ARENA_MAX, MALLOC_ARENA_MAX)
                 and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD))
+
+
+def release_free_memory():
+    """
+    Give the free pages of glibc's arenas back to the system (malloc_trim(0)); off glibc, none.
+
+    Called after each plan: the arenas otherwise keep what a plan freed behind blocks still in
+    use, and the node's resident memory crept up by about 50 KiB a minute at 1 pair/s; at 3
+    pairs/s the memory kept rose by 1.9 MiB in 6 minutes while the memory in use did not
+    (docs/reliability.md, "The node over time"). About 0.4 ms of CPU.
+    """
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
+def _glibc_malloc_trim():
+    """Return glibc's malloc_trim, or None off glibc."""
+    try:
+        if not os.confstr('CS_GNU_LIBC_VERSION'):
+            return None
+        malloc_trim = ctypes.CDLL(None).malloc_trim
+    except (AttributeError, OSError, ValueError):
+        return None
+    malloc_trim.argtypes = (ctypes.c_size_t,)
+    return malloc_trim
+
+
+_MALLOC_TRIM = _glibc_malloc_trim()
 
 
 def _watch_signals(stop, finished, on_stop):
