@@ -32,6 +32,7 @@ import os
 import re
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.core.settings import default_values
@@ -66,12 +67,13 @@ PAIR_IN_MESSAGE = re.compile(r'\bpair (\d+)\b')
 class Recorder:
     """Stands in for a publisher: keeps every message published."""
 
-    def __init__(self):
+    def __init__(self, message_type):
+        self.message_type = message_type
         self.messages = []
 
     def publish(self, message):
-        # The node publishes its trajectories serialized.
-        self.messages.append(deserialize_message(message, JointTrajectory)
+        # The node publishes its trajectories and statuses serialized.
+        self.messages.append(deserialize_message(message, self.message_type)
                              if isinstance(message, bytes) else message)
 
 
@@ -79,8 +81,8 @@ class Recorder:
 def node(ros_context):
     """Yield an EllipathNode whose trajectories and statuses are recorded."""
     node = EllipathNode(context=ros_context, namespace=NAMESPACE)
-    node._trajectory_publisher = Recorder()
-    node._diagnostics_publisher = Recorder()
+    node._trajectory_publisher = Recorder(JointTrajectory)
+    node._diagnostics_publisher = Recorder(DiagnosticArray)
     yield node
     node.destroy_node()
 
