@@ -359,6 +359,30 @@ def numbers_in_ranges(text):
     return numbers
 
 
+def serialized_diagnostic_array(stamp, statuses):
+    """
+    Serialize ``diagnostic_array(stamp, [diagnostic_status(*status) ...])`` for ``publish()``.
+
+    ``statuses``: (name, hardware_id, level, message, values) each, the arguments of
+    :func:`diagnostic_status`. Written as rclpy serializes it (CDR, little-endian): rclpy
+    publishes bytes as they are. Publishing the message object instead leaked memory in the
+    node inside rclpy's conversion of it (docs/reliability.md, "The node over time").
+    """
+    writer = _CdrWriter()
+    writer.raw(_CDR_STAMP.pack(stamp.sec, stamp.nanosec), 4)
+    writer.string('')  # header.frame_id
+    writer.raw(_CDR_UINT32.pack(len(statuses)), 4)
+    for name, hardware_id, level, message, values in statuses:
+        writer.raw(bytes(level))
+        for text in (name, message, hardware_id):
+            writer.string(text)
+        writer.raw(_CDR_UINT32.pack(len(values)), 4)
+        for key, value in values.items():
+            writer.string(str(key))
+            writer.string(_format_value(value))
+    return b''.join(writer.parts)
+
+
 def _points(array):
     """Convert an array (N, 3) to a list of geometry_msgs/Point."""
     return [Point(x=x, y=y, z=z) for x, y, z in np.asarray(array, dtype=float).tolist()]

@@ -85,8 +85,6 @@ import traceback
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
-from ellipath_ros.conversions import diagnostic_array
-from ellipath_ros.conversions import diagnostic_status
 from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import number_ranges
 from ellipath_ros.conversions import path_markers
@@ -94,6 +92,7 @@ from ellipath_ros.conversions import pose_array_positions
 from ellipath_ros.conversions import pose_position
 from ellipath_ros.conversions import seconds_from_duration
 from ellipath_ros.conversions import seconds_from_time
+from ellipath_ros.conversions import serialized_diagnostic_array
 from ellipath_ros.conversions import serialized_joint_trajectory
 from ellipath_ros.core.compiled import warm_up
 from ellipath_ros.core.conveyor import plan_belt_cycle
@@ -508,7 +507,7 @@ class EllipathNode(Node):
 
     def _intake_status(self, level, message, values):
         """Keep an intake status, with the ledger as it is now, for publish_intake_statuses."""
-        self._intake_statuses.append(diagnostic_status(
+        self._intake_statuses.append((
             self._status_name, self.get_fully_qualified_name(), level, message,
             {**values, **self._queue_values()}))
 
@@ -532,12 +531,12 @@ class EllipathNode(Node):
                 values.update(pairs=number_ranges(numbers), pair_count=len(numbers))
                 reason = (f'{len(numbers)} pairs rejected as {QueueFullError.kind} (pairs '
                           f'{values["pairs"]}), each in turn; the first: {reason}')
-            statuses.append(diagnostic_status(
+            statuses.append((
                 self._status_name, self.get_fully_qualified_name(), DiagnosticStatus.WARN,
                 reason, {**values, **self._queue_values()}))
         self._queue_full = {}
         if statuses and not self._sequencer.stopped:
-            self._diagnostics_publisher.publish(diagnostic_array(
+            self._diagnostics_publisher.publish(serialized_diagnostic_array(
                 self.get_clock().now().to_msg(), statuses))
 
     def _log_rejection(self, text):
@@ -646,6 +645,9 @@ class EllipathNode(Node):
             taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving)
             if taken is not None:
                 self._plan_queued(*taken)
+                # After its statuses: the motion is already on its way (see
+                # release_free_memory).
+                release_free_memory()
 
     def _requeue_stale_belt_picks(self, velocity, settings):
         """
@@ -1057,9 +1059,12 @@ class EllipathNode(Node):
         """Publish one diagnostics status (none once the node stops)."""
         if self._sequencer.stopped:
             return
-        self._diagnostics_publisher.publish(diagnostic_array(
-            self.get_clock().now().to_msg(), [diagnostic_status(
-                self._status_name, self.get_fully_qualified_name(), level, message, values)]))
+        # Serialized here: rclpy's conversion of the message object leaked (see
+        # serialized_diagnostic_array).
+        self._diagnostics_publisher.publish(serialized_diagnostic_array(
+            self.get_clock().now().to_msg(), [(self._status_name,
+                                               self.get_fully_qualified_name(), level,
+                                               message, values)]))
 
 
 def _delayed_belt_start(motion, delay, frame_id):
@@ -1137,6 +1142,34 @@ def set_malloc_policy(environment=os.environ):
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     return bool(mallopt(_M_ARENA_MAX, MALLOC_ARENA_MAX)
                 and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD))
+
+
+def release_free_memory():
+    """
+    Give the free pages of glibc's arenas back to the system (malloc_trim(0)); off glibc, none.
+
+    Called after each plan: the arenas otherwise keep what a plan freed behind blocks still in
+    use, and the node's resident memory crept up by about 50 KiB a minute at 1 pair/s; at 3
+    pairs/s the memory kept rose by 1.9 MiB in 6 minutes while the memory in use did not
+    (docs/reliability.md, "The node over time"). About 0.4 ms of CPU.
+    """
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
+def _glibc_malloc_trim():
+    """Return glibc's malloc_trim, or None off glibc."""
+    try:
+        if not os.confstr('CS_GNU_LIBC_VERSION'):
+            return None
+        malloc_trim = ctypes.CDLL(None).malloc_trim
+    except (AttributeError, OSError, ValueError):
+        return None
+    malloc_trim.argtypes = (ctypes.c_size_t,)
+    return malloc_trim
+
+
+_MALLOC_TRIM = _glibc_malloc_trim()
 
 
 def _watch_signals(stop, finished, on_stop):

@@ -35,6 +35,7 @@ import os
 import re
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 from diagnostic_msgs.msg import DiagnosticStatus
 from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.conversions import numbers_in_ranges
@@ -76,12 +77,13 @@ ROBOT_DONE = 1e6
 class Recorder:
     """Stands in for a publisher: keeps every message published."""
 
-    def __init__(self):
+    def __init__(self, message_type):
+        self.message_type = message_type
         self.messages = []
 
     def publish(self, message):
-        # The node publishes its trajectories serialized.
-        self.messages.append(deserialize_message(message, JointTrajectory)
+        # The node publishes its trajectories and statuses serialized.
+        self.messages.append(deserialize_message(message, self.message_type)
                              if isinstance(message, bytes) else message)
 
 
@@ -96,8 +98,8 @@ def node(ros_context):
     plans reach the publisher. When to release is tested in test_node.py with Jazzy's JTC.
     """
     node = EllipathNode(context=ros_context, namespace=NAMESPACE)
-    node._trajectory_publisher = Recorder()
-    node._diagnostics_publisher = Recorder()
+    node._trajectory_publisher = Recorder(JointTrajectory)
+    node._diagnostics_publisher = Recorder(DiagnosticArray)
     node.sequencer.clock = lambda: time.monotonic() + ROBOT_DONE
     yield node
     node.destroy_node()

@@ -22,8 +22,13 @@ JSON line every ``ELLIPATH_MEMORY_PROBE_PERIOD`` seconds (default 20): VmRSS by 
 mapping (``[heap]`` is glibc's main arena; ``anon`` its other arenas, Python's and large
 mapped blocks; ``file`` the libraries; ``shm`` Fast DDS's shared memory), glibc's
 ``mallinfo2`` over every arena (``in_use``: allocated; ``kept``: freed but kept by the
-allocator; ``mapped``: blocks mapped on their own), the Python heap's blocks and the number of
-threads. Other processes are not touched::
+allocator; ``mapped``: blocks mapped on their own), the Python heap's blocks, the number of
+threads and, with ``NUMBA_NRT_STATS=1``, numba's runtime allocations still live (allocated
+less freed: the arrays that compiled kernels create, which neither the Python heap nor
+tracemalloc sees). With ``ELLIPATH_MEMORY_PROBE_TRACE`` set to a number of seconds,
+tracemalloc starts then (after the warm-up; it slows the node several times) and every sample
+adds the 8 source lines whose allocations still held grew most since the first sample after
+it. Other processes are not touched::
 
     PYTHONPATH=scripts/memory_probe ELLIPATH_MEMORY_PROBE=/tmp/probe.jsonl \
         ROS_DOMAIN_ID=45 .venv/bin/python scripts/soak.py node --minutes 8 --rate 3
@@ -38,6 +43,7 @@ import os
 import sys
 import threading
 import time
+import tracemalloc
 
 
 class _Mallinfo2(ctypes.Structure):
@@ -70,26 +76,54 @@ def _resident_by_kind():
     return kinds
 
 
+def _numba_live():
+    """Return numba's runtime allocations and meminfos still live, if it counts them."""
+    runtime = sys.modules.get('numba.core.runtime')
+    if runtime is None or os.environ.get('NUMBA_NRT_STATS') != '1':
+        return None
+    stats = runtime.rtsys.get_allocation_stats()
+    return {'allocations': stats.alloc - stats.free, 'meminfos': stats.mi_alloc - stats.mi_free}
+
+
 def _sample(mallinfo2, started):
     info = mallinfo2()
     return {'t': round(time.monotonic() - started), 'resident_kib': _resident_by_kind(),
             'in_use_kib': info.uordblks // 1024, 'kept_kib': info.fordblks // 1024,
             'mapped_kib': info.hblkhd // 1024, 'python_blocks': sys.getallocatedblocks(),
-            'threads': len(os.listdir('/proc/self/task'))}
+            'threads': len(os.listdir('/proc/self/task')), 'numba_live': _numba_live()}
 
 
-def _probe(path, period):
+def _traced_growth(snapshot, first):
+    """Return the 8 source lines whose held allocations grew most since ``first``."""
+    return [{'where': str(stat.traceback[0]), 'size_diff_b': stat.size_diff,
+             'count_diff': stat.count_diff, 'size_b': stat.size}
+            for stat in snapshot.compare_to(first, 'lineno')[:8]]
+
+
+def _probe(path, period, trace_after):
     mallinfo2 = ctypes.CDLL(None).mallinfo2
     mallinfo2.restype = _Mallinfo2
     started = time.monotonic()
+    first_trace = None
     with open(path, 'w') as out:
         while True:
             time.sleep(period)
-            out.write(json.dumps(_sample(mallinfo2, started)) + '\n')
+            sample = _sample(mallinfo2, started)
+            if trace_after is not None and sample['t'] >= trace_after:
+                if not tracemalloc.is_tracing():
+                    tracemalloc.start()
+                elif first_trace is None:
+                    first_trace = tracemalloc.take_snapshot()
+                else:
+                    sample['traced_growth'] = _traced_growth(tracemalloc.take_snapshot(),
+                                                             first_trace)
+            out.write(json.dumps(sample) + '\n')
             out.flush()
 
 
 if os.environ.get('ELLIPATH_MEMORY_PROBE') and _is_the_node():
     threading.Thread(target=_probe, name='memory_probe', daemon=True, args=(
         os.environ['ELLIPATH_MEMORY_PROBE'],
-        float(os.environ.get('ELLIPATH_MEMORY_PROBE_PERIOD', '20')))).start()
+        float(os.environ.get('ELLIPATH_MEMORY_PROBE_PERIOD', '20')),
+        float(os.environ['ELLIPATH_MEMORY_PROBE_TRACE'])
+        if os.environ.get('ELLIPATH_MEMORY_PROBE_TRACE') else None)).start()
