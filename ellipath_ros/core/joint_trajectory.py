@@ -1103,6 +1103,14 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
             break
         index = np.arange(trial_times.size)
         trial_errors = errors_of(trial, index[:-1], index[1:])
+        if not np.isfinite(trial_errors).all():
+            # JTC's quintic between two trial knots passes a pose the arms cannot assemble:
+            # the set is rejected, and the next has one segment more, spread by the last
+            # finite measurement (which the error density needs).
+            target += 1
+            if target >= knots.time_from_start.size - 1:
+                break
+            continue
         times, measured = trial_times, trial_errors
         if (trial_errors <= accept).all():
             knots, errors = _prune(trial, trial_errors, accept, errors_of)
