@@ -309,8 +309,8 @@ class EllipathNode(Node):
         self._intake_routes = ((pick, 'pick_pose', self._take_pick),
                                (pick_place, 'pick_place', self._take_pick_place),
                                (place, 'place_pose', self._take_place))
-        self._status_timer = self.create_timer(STATUS_PERIOD, self.publish_intake_statuses,
-                                               callback_group=intake_group)
+        self.create_timer(STATUS_PERIOD, self.publish_intake_statuses,
+                          callback_group=intake_group)
         self.create_subscription(JointState, 'joint_states', self._on_joint_state,
                                  qos_profile_sensor_data,
                                  callback_group=MutuallyExclusiveCallbackGroup())
@@ -351,9 +351,10 @@ class EllipathNode(Node):
     def request_stop(self):
         """Make the planning and release threads stop; nothing is released from now on."""
         self._sequencer.stop()
-        # Not fired again while the node is destroyed (a firing then was reported as "never
-        # retrieved" at exit); intake statuses are no longer published anyway.
-        self._status_timer.cancel()
+        # The status timer is not cancelled here: this runs in the signal watcher's thread,
+        # and an executor that has already taken the timer as ready then calls a cancelled
+        # timer, which raises RCLError ('timer is canceled') out of spin_once (a SIGINT right
+        # after start-up exited with status 1). Once stopped, its callback does nothing.
 
     def stop_workers(self, timeout=SHUTDOWN_WAIT):
         """Stop the planning and release threads; wait up to ``timeout`` s for each."""
@@ -520,6 +521,8 @@ class EllipathNode(Node):
         ledger as it is now. Called by the intake callbacks and by a timer every
         STATUS_PERIOD; intake callback group only.
         """
+        if self._sequencer.stopped:
+            return  # shutting down: nothing is published, the context may be going
         self._expire_places()
         self._intake_published = time.monotonic()
         statuses, self._intake_statuses = self._intake_statuses, []
