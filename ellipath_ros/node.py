@@ -185,7 +185,7 @@ PAIR_TOPICS = ('place_pose', 'pick_place')
 # what the node had not read. Every rejection still has its status on /diagnostics.
 REJECTION_LOG_PERIOD = 1.0
 # Intake reads up to this many pose messages per executor callback, straight from the
-# subscriptions (_read_backlog): rclpy's executor spends about 0.5 ms of CPU per callback
+# subscriptions (_read_intake): rclpy's executor spends about 0.5 ms of CPU per callback
 # (building its wait set, a task, a hand-over to a pool thread), five times what taking and
 # checking a pair costs, and in a flood the node read no more than about 200 pairs/s. Bounded,
 # so that the executor still serves the status timer of the same callback group in between.
@@ -304,7 +304,7 @@ class EllipathNode(Node):
                                         callback_group=intake_group)
         place = self.create_subscription(PoseStamped, 'place_pose', self._on_place, INTAKE_QOS,
                                          callback_group=intake_group)
-        # What _read_backlog takes, in this order: every pick DDS holds before any place, so
+        # What _read_intake takes, in this order: every pick DDS holds before any place, so
         # that a place is read after the pick sent before it (stamp pairing).
         self._intake_routes = ((pick, 'pick_pose', self._take_pick),
                                (pick_place, 'pick_place', self._take_pick_place),
