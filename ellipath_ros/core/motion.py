@@ -370,58 +370,62 @@ class TimedMotion:
             t = _grid_times(self)
         s, states, norms, peaks = _sampled(self, t)
         object.__setattr__(self, '_peaks', peaks)
-        if not by_pieces:
-            object.__setattr__(self, '_states', (t, *states))
+        object.__setattr__(self, '_states', (t, *states))
         return (s, *norms)
 
     def sampled_states(self):
         """
-        Return the motion sampled every ``_CHECK_PERIOD``, as vectors.
+        Return the samples of :meth:`sampled_norms`, as vectors.
 
-        The samples of :meth:`sampled_norms` where it takes them on that grid
-        (the time-optimal profile); the curvature profile's are taken when first
-        asked for (its knot search reads this grid).
+        Every ``_CHECK_PERIOD`` and on both sides of every bound of the law's
+        constant-jerk pieces; the curvature profile's at ``_PIECE_SAMPLES`` even
+        steps across each of its pieces (the planner's knots, joint peaks and jerk
+        steps read them too).
 
         Returns
         -------
         tuple of numpy.ndarray
             Times [s] (N,), sorted, and position [m], velocity [m/s],
             acceleration [m/s**2] and jerk [m/s**3], each (N, 3). Both
-            sides of every bound of the law's constant-jerk pieces are
-            samples (1e-9 of the duration off the bound).
+            sides of every piece bound are samples (1e-9 of the duration
+            off the bound).
 
         """
         if self._states is None:
-            if isinstance(self.law, _Sequence):
-                t = _grid_times(self)
-                object.__setattr__(self, '_states', (t, *_sampled(self, t)[1]))
-            else:
-                self.sampled_norms()
+            self.sampled_norms()
         return self._states
 
     def jerk_steps(self):
         """
         Return the times [s] (K,) and sizes [m/s**3] (K,) of the steps of the TCP jerk.
 
-        The jerk steps where the law's third derivative does (its piece bounds)
-        and where the path's curvature rate does (T1, T2 and, with a G2 join,
-        where the transitions meet the ellipse). At a piece bound where the
+        The jerk steps where the law's third derivative does (its piece bounds;
+        a sequence of laws: theirs and those of their pieces) and where the
+        path's curvature rate does (T1, T2 and, with a G2 join, where the
+        transitions meet the ellipse). At a piece bound where the
         path is smooth only the law's jerk steps (s, s' and s'' are
         continuous), along the unit tangent: the size is read from the law's
-        pieces. At the path's marks it is the norm of the difference of the
-        one-sided jerk vectors, 1e-9 of the duration off the mark on both
-        sides (a piece bound there is counted in it).
+        pieces (a sequence's: its s''' on both sides). At the path's marks it
+        is the norm of the difference of the one-sided jerk vectors, 1e-9 of
+        the duration off the mark on both sides (a piece bound there is
+        counted in it).
         """
         epsilon = 1e-9 * self.duration
         marks = self._mark_times()
-        times, sizes = np.zeros(0), np.zeros(0)
         law_times = getattr(self.law, 'times', None)
         if law_times is not None:
             times = law_times[1:-1] * self.time_scale
             sizes = np.abs(np.diff(self.law.jerk)) / self.time_scale ** 3
-            if marks.size:
-                apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
-                times, sizes = times[apart], sizes[apart]
+        else:
+            # A sequence of laws (the curvature profile): the bounds of its laws and of their
+            # constant-jerk pieces (the Ruckig lines' switches), s''' read on both sides.
+            times = np.unique(self.law.bounds()[0])[1:-1] * self.time_scale
+            jerk = self.path_state(np.concatenate((np.maximum(times - epsilon, 0.0),
+                                                   np.minimum(times + epsilon, self.duration))))[3]
+            sizes = np.abs(jerk[times.size:] - jerk[:times.size])
+        if marks.size and times.size:
+            apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+            times, sizes = times[apart], sizes[apart]
         if marks.size:
             jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
                                                  np.minimum(marks + epsilon, self.duration))))[3]
