@@ -14,6 +14,8 @@
 
 """One sample set per leg: what the knots, the peaks and the slow-downs derive from it."""
 
+import dataclasses
+
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.joint_trajectory import (
@@ -26,6 +28,8 @@ import numpy as np
 import pytest
 
 CONFIG = PlannerConfig()
+# The paper's profile (on the paper's join): its motion is sampled along its own pieces.
+CURVATURE = dataclasses.replace(CONFIG, profile='curvature', join='paper')
 
 
 def random_pairs(count, seed=11):
@@ -35,10 +39,10 @@ def random_pairs(count, seed=11):
                               rng.uniform(-0.95, -0.7)]) for _ in range(2))
 
 
-def timed(pick=(0.0, 0.0, -0.8), place=(0.3, 0.0, -0.75)):
-    path = plan_path(pick, place, CONFIG.pick_clearance, CONFIG.place_clearance, CONFIG.arc,
-                     CONFIG.join, CONFIG.join_tolerance)
-    return time_motion(path, CONFIG.limits)
+def timed(pick=(0.0, 0.0, -0.8), place=(0.3, 0.0, -0.75), config=CONFIG):
+    path = plan_path(pick, place, config.pick_clearance, config.place_clearance, config.arc,
+                     config.join, config.join_tolerance)
+    return time_motion(path, config.limits, profile=config.profile, r=config.curvature_r)
 
 
 def test_the_samples_of_a_slowed_motion_are_the_samples_rescaled():
@@ -114,11 +118,12 @@ def test_segment_peaks_are_the_largest_samples_of_each_interval():
     np.testing.assert_array_equal(peaks, interpreted)
 
 
-def test_knots_from_the_samples_meet_the_tolerance_on_random_legs():
+@pytest.mark.parametrize('config, pairs, least', [(CONFIG, 30, 20), (CURVATURE, 12, 8)])
+def test_knots_from_the_samples_meet_the_tolerance_on_random_legs(config, pairs, least):
     checked = 0
-    for pick, place in random_pairs(30, seed=5):
+    for pick, place in random_pairs(pairs, seed=5):
         try:
-            leg = plan_transfer(pick, place, CONFIG)
+            leg = plan_transfer(pick, place, config)
         except EllipathError:
             continue
         trajectory = leg.joint_trajectory
@@ -134,7 +139,7 @@ def test_knots_from_the_samples_meet_the_tolerance_on_random_legs():
         assert deviation <= CONFIG.knot_tolerance
         assert leg.max_interpolation_error >= 0.95 * deviation
         checked += 1
-    assert checked >= 20
+    assert checked >= least
 
 
 def test_jerk_steps_are_where_the_path_and_the_law_step():
@@ -151,6 +156,26 @@ def test_jerk_steps_are_where_the_path_and_the_law_step():
     after = motion.state_at(times + epsilon)[3]
     np.testing.assert_allclose(sizes, np.linalg.norm(after - before, axis=1), rtol=1e-6,
                                atol=1e-6 * CONFIG.limits.max_jerk)
+
+
+def test_jerk_steps_of_the_curvature_profile_include_the_lines_switches():
+    motion = timed(config=CURVATURE)
+    times, sizes = motion.jerk_steps()
+    # Independently: the TCP jerk on a 1 us grid over the lift (a Ruckig line, straight up)
+    # changes by more than a tenth of the limit only across a switch of its profile.
+    lift = motion.segment_durations[0]
+    t = np.arange(0.0, lift, 1e-6)
+    jerk = np.linalg.norm(motion.state_at(t)[3], axis=1)
+    switches = t[1:][np.abs(np.diff(jerk)) > 0.1 * CURVATURE.limits.max_jerk]
+    assert switches.size >= 2
+    found = times[times < lift]
+    for switch in switches:
+        assert np.abs(found - switch).min() <= 1e-6
+    # The sizes are the one-sided jerk differences, evaluated here directly.
+    epsilon = 1e-9 * motion.duration
+    before, after = (motion.state_at(times + shift)[3] for shift in (-epsilon, epsilon))
+    np.testing.assert_allclose(sizes, np.linalg.norm(after - before, axis=1), rtol=1e-6,
+                               atol=1e-6 * CURVATURE.limits.max_jerk)
 
 
 @pytest.mark.parametrize('factor', [1.0, 1.3])

@@ -762,8 +762,9 @@ class MotionSamples:
     wants it (:meth:`states`), and the motion is evaluated only where no
     sample is near enough. A timed motion brings its own samples (those of its
     final limit check, ``sampled_states``: every 0.1 ms and both sides of every
-    piece bound of its law); any other motion is sampled every
-    ``_SAMPLE_PERIOD`` and at its jerk steps. A uniform slow-down
+    piece bound of its law; the curvature profile's 8 even steps across each of
+    its pieces); any other motion is sampled every ``_SAMPLE_PERIOD`` and at its
+    jerk steps. A uniform slow-down
     (:meth:`scaled`) only rescales them: the joint motion of a motion slowed
     down by f is the same joint path with velocities / f and accelerations /
     f**2.
