@@ -21,6 +21,7 @@ from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.joint_trajectory import check_joint_limits
 from ellipath_ros.core.joint_trajectory import DEFAULT_JOINT_NAMES
+from ellipath_ros.core.joint_trajectory import executed_table
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import minimal_knots
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
@@ -335,3 +336,31 @@ def test_joint_limits_between_knots_need_interpolation():
     check_joint_limits(traj, GEOMETRY, JointLimits())
     with pytest.raises(LimitError, match=r'^joint_2 position: expected a value in '):
         check_joint_limits(traj, GEOMETRY, JointLimits(), samples_per_segment=20)
+    # With the executed table the segment near the bound is still walked.
+    with pytest.raises(LimitError, match=r'^joint_2 position: expected a value in '):
+        check_joint_limits(traj, GEOMETRY, JointLimits(), samples_per_segment=20,
+                           table=executed_table(traj, GEOMETRY))
+
+
+def test_joint_limits_from_the_table_name_an_extreme_between_the_samples():
+    # Asymmetric ends: the speed peaks between the walk's samples (ends and middle).
+    traj = JointTrajectoryData(NAMES, [0.0, 0.1], np.array([[0.1, 0.2, 0.3], [0.12, 0.6, 0.3]]),
+                               np.array([[0.0, 1.0, 0.0], [0.0, -2.0, 0.0]]),
+                               np.array([[0.0, 30.0, 0.0], [0.0, 0.0, 0.0]]))
+    # Independently: the quintic's speed on a fine grid.
+    t = np.linspace(0.0, 0.1, 1000001)
+    speed = quintic_interpolate(traj, t)[1][:, 1]
+    peak = int(np.argmax(np.abs(speed)))
+    limits = JointLimits(max_velocity=0.9999 * abs(speed[peak]))
+    table = executed_table(traj, GEOMETRY)
+    # The samples alone miss it ...
+    check_joint_limits(traj, GEOMETRY, limits, samples_per_segment=1)
+    # ... the table's exact extreme does not, named at its own time and value.
+    with pytest.raises(LimitError, match=r'^joint_2 velocity: expected ') as caught:
+        check_joint_limits(traj, GEOMETRY, limits, samples_per_segment=1, table=table)
+    value, when = str(caught.value).split(' got ')[1].split(' at t=')
+    assert float(value) == pytest.approx(speed[peak], rel=1e-5)
+    assert float(when.rstrip(' s')) == pytest.approx(t[peak], abs=2e-6)
+    # A table of other knots is refused.
+    with pytest.raises(InvalidInputError, match=r'^table: expected shape \(1, 5\)'):
+        check_joint_limits(traj, GEOMETRY, limits, table=np.zeros((2, 5)))

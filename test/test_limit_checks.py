@@ -16,6 +16,7 @@
 
 from ellipath_ros.core import planner
 from ellipath_ros.core.errors import LimitError
+from ellipath_ros.core.joint_trajectory import executed_table
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.planner import plan_transfer
@@ -33,11 +34,11 @@ def overshooting_points(real_points):
     The points are the leg's own first and last joint positions, at rest, so
     each point is within every joint limit; JTC's quintic between two points at
     rest peaks at 15/8 of the mean speed, here twice the joint speed limit.
-    The executed table is the real one (within the bounds): only a check of
-    the interpolation between the points can see the overshoot.
+    The executed table is the built points' own: only what the planner derives
+    from the interpolation between the points can see the overshoot.
     """
     def built(motion, config, bounds, samples=None):
-        trajectory, error, table = real_points(motion, config, bounds, samples)
+        trajectory, error, _ = real_points(motion, config, bounds, samples)
         ends = trajectory.positions[[0, -1]]
         travel = float(np.abs(ends[1] - ends[0]).max())
         duration = 15.0 / 8.0 * travel / (2.0 * config.joint_limits.max_velocity)
@@ -45,28 +46,32 @@ def overshooting_points(real_points):
         points = JointTrajectoryData(trajectory.joint_names, np.array([0.0, duration]), ends,
                                      np.zeros((2, 3)), np.zeros((2, 3)))
         built.points = points
-        return points, error, table
+        return points, error, executed_table(points, config.geometry)
     return built
 
 
 def test_joint_speed_between_points_is_checked(monkeypatch):
     config = PlannerConfig()
+    limit = config.joint_limits.max_velocity
     built = overshooting_points(planner._joint_points)
     monkeypatch.setattr(planner, '_joint_points', built)
-    # Without the check between the points the built input is published as planned ...
-    with monkeypatch.context() as unchecked:
-        unchecked.setattr(planner, 'check_joint_limits', lambda *args, **kwargs: None)
-        leg = plan_transfer(PICK, PLACE, config)
+    leg = plan_transfer(PICK, PLACE, config)
     points = built.points
-    assert leg.joint_trajectory is points
-    limit = config.joint_limits.max_velocity
-    # ... although its points are within the limits and its quintic is not (independently:
-    # the quintic's speed on a fine grid, at least 1.9 times the limit).
+    # The built points are within the limits, their quintic is not (independently: the
+    # quintic's speed on a fine grid, at least 1.9 times the limit) ...
     assert np.abs(points.velocities).max() <= limit
     assert np.abs(points.accelerations).max() <= config.joint_limits.max_acceleration
     t = np.linspace(0.0, points.time_from_start[-1], 2001)
     assert np.abs(quintic_interpolate(points, t)[1]).max() >= 1.9 * limit
-    # With the check, the planner refuses it (the quintic's acceleration breaks its limit too,
-    # and earlier: whichever the check meets first is named).
+    # ... so the planner slows them down until the quintic keeps the limit.
+    published = leg.joint_trajectory
+    assert leg.joint_slowdown >= 1.9
+    t = np.linspace(0.0, published.time_from_start[-1], 20001)
+    speed, accel = (np.abs(values).max() for values in quintic_interpolate(published, t)[1:])
+    assert speed <= limit
+    assert accel <= config.joint_limits.max_acceleration
+    # Without a slow-down left, the planner refuses it, naming the joint limit the quintic
+    # breaks first (its acceleration breaks its limit too, and earlier: whichever comes first).
+    monkeypatch.setattr(planner, '_SLOWDOWN_ATTEMPTS', 1)
     with pytest.raises(LimitError, match=r'^joint_\d (velocity|acceleration): expected'):
         plan_transfer(PICK, PLACE, config)

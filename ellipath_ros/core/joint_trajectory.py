@@ -1218,7 +1218,7 @@ def _prune(knots, errors, accept, errors_of):
     return knots, errors
 
 
-def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
+def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0, table=None):
     """
     Raise :class:`LimitError` at the first sample that breaks a joint limit.
 
@@ -1237,6 +1237,13 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
     samples_per_segment : int
         If > 0, also check JTC's quintic interpolation at this many interior points of every
         segment (use it for knots: the polynomial may peak between them).
+    table : numpy.ndarray, optional
+        The executed peaks of ``traj`` (:func:`executed_table`, (K - 1, 5)), with the
+        exact joint speed and acceleration extremes of each segment's quintic. Then only
+        the segments that could break a limit are walked as above: those whose extremes
+        break one, or whose positions could reach a bound (their ends, widened by the
+        largest speed times half the segment's length). A speed or acceleration extreme
+        above its limit that the walk's samples miss is named at its own time.
 
     Raises
     ------
@@ -1247,10 +1254,25 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
     extra = int(require_range('samples_per_segment', samples_per_segment, 0.0))
     low, high = geometry.joint_min, geometry.joint_max
     vmax, amax = joint_limits.max_velocity, joint_limits.max_acceleration
-    found = np.empty(2)
-    quantity, joint = _joint_limit_rows(
-        traj.time_from_start, traj.positions, traj.velocities, traj.accelerations, extra, low,
-        high, vmax, amax, found)
+    times = traj.time_from_start
+    segments = max(times.size - 1, 0)
+    if table is None:
+        table = _NO_TABLE_ROWS
+    elif np.shape(table) != (segments, len(EXECUTED_KEYS)):
+        raise InvalidInputError(f'table: expected shape ({segments}, {len(EXECUTED_KEYS)}) '
+                                f'(one row per segment), got shape {np.shape(table)}')
+    table = np.ascontiguousarray(table, dtype=float)
+    found = np.empty(3)
+    quantity, joint = _joint_limit_rows(times, traj.positions, traj.velocities,
+                                        traj.accelerations, extra, table, low, high, vmax,
+                                        amax, found)
+    if quantity < 0 and found[2] >= 0:
+        # An extreme between the walk's samples: named where it is.
+        segment = int(found[2])
+        quantity = 1 if table[segment, 3] > vmax else 2
+        c = np.ascontiguousarray(segment_polynomials(traj)[segment])
+        value, offset, joint = _joint_peak(c, times[segment + 1] - times[segment], quantity)
+        found[0], found[1] = times[segment] + offset, value
     if quantity < 0:
         return
     name = traj.joint_names[joint]
@@ -1265,22 +1287,42 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0):
                      f'{found[1]:.6g} {when}')
 
 
+# No executed table: check_joint_limits walks every segment.
+_NO_TABLE_ROWS = np.empty((0, 5))
+
+
 @kernel
-def _joint_limit_rows(times, positions, velocities, accelerations, extra, low, high, vmax,
-                      amax, found):
+def _joint_limit_rows(times, positions, velocities, accelerations, extra, table, low, high,
+                      vmax, amax, found):
     """
     Return (quantity, joint) of the first joint-limit violation of :func:`check_joint_limits`.
 
-    With ``extra`` > 0 JTC's quintic of every segment is checked at its start and ``extra``
-    interior points, evenly spaced, then the last point; else the points. Quantity 0 is the
-    position, 1 the velocity, 2 the acceleration, -1 none; ``found`` receives its time and
-    value.
+    With ``extra`` > 0 JTC's quintic of every segment is checked at its start and
+    ``extra`` interior points, evenly spaced, then the last point; else the points. With a
+    ``table`` (K - 1, 5) (none: 0 rows) only the segments it lets break a limit are
+    walked; one whose speed or acceleration extreme breaks a limit between the samples
+    stops the walk, its index in ``found[2]`` (else -1). Quantity 0 is the position, 1 the
+    velocity, 2 the acceleration, -1 none; ``found`` receives its time and value.
     """
     c = np.empty((6, 3))
     state = np.empty((3, 3))
     count = times.size
     interpolated = extra > 0 and count > 1
+    found[2] = -1.0
     for segment in range(count - 1 if interpolated else 0):
+        exceeded = False
+        if table.shape[0] > 0:
+            exceeded = table[segment, 3] > vmax or table[segment, 4] > amax
+            # Within a segment a joint moves at most its largest speed times half the length
+            # away from the nearer end.
+            reach = 0.5 * table[segment, 3] * (times[segment + 1] - times[segment])
+            near = False
+            for j in range(3):
+                first, second = positions[segment, j], positions[segment + 1, j]
+                near = near or max(first, second) + reach > high or (
+                    min(first, second) - reach < low)
+            if not (exceeded or near):
+                continue
         length = times[segment + 1] - times[segment]
         _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
                       accelerations, segment, segment + 1, c)
@@ -1293,6 +1335,10 @@ def _joint_limit_rows(times, positions, velocities, accelerations, extra, low, h
             if quantity >= 0:
                 found[0], found[1] = times[segment] + x, state[quantity, joint]
                 return quantity, joint
+        if exceeded:
+            # Its extreme lies between the samples: the first offence, named by the caller.
+            found[2] = segment
+            return -1, 0
     for point in range(count - 1 if interpolated else 0, count):
         for j in range(3):
             state[0, j], state[1, j] = positions[point, j], velocities[point, j]
@@ -1627,21 +1673,29 @@ def _search_peak(c, centre, step, samples, values, key, rx, ry, offset, upper, f
 
 @kernel
 def _joint_extremes(c, length):
-    """
-    Return the largest |q_dot| and |q_ddot| of quintic ``c`` (6, 3) on [0, ``length``].
+    """Return the largest |q_dot| and |q_ddot| of quintic ``c`` (6, 3) on [0, ``length``]."""
+    return abs(_joint_peak(c, length, 1)[0]), abs(_joint_peak(c, length, 2)[0])
 
-    Exact: |q_ddot| (a cubic) peaks at an end or where q_dddot (a quadratic) vanishes;
-    |q_dot| at an end or where q_ddot vanishes, found by bisection on each stretch
-    between those points, where q_ddot is monotonic.
+
+@kernel
+def _joint_peak(c, length, derivative):
     """
-    speed = accel = 0.0
+    Return (value, offset, joint) of the largest |q_dot| (``derivative`` 1) or |q_ddot| (2).
+
+    Of quintic ``c`` (6, 3) on [0, ``length``]; the signed value, where it is, and the
+    joint. Exact: |q_ddot| (a cubic) peaks at an end or where q_dddot (a quadratic)
+    vanishes; |q_dot| at an end or where q_ddot vanishes, found by bisection on each
+    stretch between those points, where q_ddot is monotonic.
+    """
+    value, offset, joint = 0.0, 0.0, 0
     for j in range(3):
         first, second = _quadratic_roots(60.0 * c[5, j], 24.0 * c[4, j], 6.0 * c[3, j])
         cuts = (0.0, min(max(first, 0.0), length), min(max(second, 0.0), length), length)
         for cut in cuts:
-            speed = max(speed, abs(_polynomial(c, j, cut, 1)))
-            accel = max(accel, abs(_polynomial(c, j, cut, 2)))
-        for piece in range(3):
+            here = _polynomial(c, j, cut, derivative)
+            if abs(here) > abs(value):
+                value, offset, joint = here, cut, j
+        for piece in range(3 if derivative == 1 else 0):
             low, high = cuts[piece], cuts[piece + 1]
             at_low, at_high = _polynomial(c, j, low, 2), _polynomial(c, j, high, 2)
             if high <= low or (at_low > 0.0) == (at_high > 0.0):
@@ -1652,8 +1706,10 @@ def _joint_extremes(c, length):
                     low = middle
                 else:
                     high = middle
-            speed = max(speed, abs(_polynomial(c, j, 0.5 * (low + high), 1)))
-    return speed, accel
+            here = _polynomial(c, j, 0.5 * (low + high), 1)
+            if abs(here) > abs(value):
+                value, offset, joint = here, 0.5 * (low + high), j
+    return value, offset, joint
 
 
 @kernel

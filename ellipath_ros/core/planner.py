@@ -51,7 +51,9 @@ from .workspace import inside, SafeWorkspace
 _REACH_CHECK_SPACING = 0.002
 # The joint-speed cap is interpolated between path samples: keep a margin for that.
 _JOINT_CAP_MARGIN = 0.97
-# Interior points per knot segment at which JTC's quintic is checked against the limits.
+# Interior points per knot segment at which JTC's quintic is checked against the position
+# limits where it could reach them (its speed and acceleration extremes are in the executed
+# table).
 _QUINTIC_CHECK_SAMPLES = 16
 # Share of the joint limits the motion itself may use (JTC's quintic may overshoot it).
 _JOINT_LIMIT_SHARE = 0.99
@@ -397,7 +399,7 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
         excess = _excess_factor(table.max(axis=0) / bounds)
         try:
             check_joint_limits(trajectory, config.geometry, limits,
-                               samples_per_segment=_QUINTIC_CHECK_SAMPLES)
+                               samples_per_segment=_QUINTIC_CHECK_SAMPLES, table=table)
         except LimitError:
             if attempt == _SLOWDOWN_ATTEMPTS - 1:
                 raise
