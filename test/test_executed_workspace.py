@@ -20,14 +20,15 @@ from ellipath_ros.core.joint_trajectory import quintic_positions
 from ellipath_ros.core.kinematics import _kernel_geometry, forward_kinematics
 from ellipath_ros.core.planner import (
     _EXECUTED_WORKSPACE_TOLERANCE, _first_outside, _WORKSPACE_CHECK_PERIOD,
-    _WORKSPACE_CHECK_STRIDE, _WORKSPACE_SPEED_MARGIN, plan_transfer, PlannerConfig)
+    _WORKSPACE_CHECK_STRIDE, _WORKSPACE_COARSE_BLOCKS, _WORKSPACE_SPEED_MARGIN, plan_transfer,
+    PlannerConfig)
 from ellipath_ros.core.workspace import SafeWorkspace
 import numpy as np
 
 CONFIG = PlannerConfig()
 
 
-def first_outside(leg, workspace, stride):
+def first_outside(leg, workspace, stride, coarse_blocks=1):
     """Return the planner's first sample outside ``workspace``, checked in blocks of stride."""
     trajectory = leg.joint_trajectory
     times = trajectory.time_from_start
@@ -36,7 +37,7 @@ def first_outside(leg, workspace, stride):
     margin = (_WORKSPACE_SPEED_MARGIN * leg.executed['peak_speed'] * stride * (t[1] - t[0])
               / 2.0)
     found = _first_outside(times, trajectory.positions, trajectory.velocities,
-                           trajectory.accelerations, t, stride, margin,
+                           trajectory.accelerations, t, stride, coarse_blocks, margin,
                            *_kernel_geometry(CONFIG.geometry)[:5], workspace.radius,
                            workspace.z_min, workspace.z_max, workspace.box_table(),
                            _EXECUTED_WORKSPACE_TOLERANCE)
@@ -66,6 +67,8 @@ def test_blocks_find_the_first_sample_outside_as_every_sample_does():
         assert isinstance(workspace, SafeWorkspace)
         found, expected, _ = first_outside(leg, workspace, _WORKSPACE_CHECK_STRIDE)
         assert found == expected
+        assert first_outside(leg, workspace, _WORKSPACE_CHECK_STRIDE,
+                             _WORKSPACE_COARSE_BLOCKS)[0] == expected
         assert first_outside(leg, workspace, 1)[0] == expected
         rejected += expected >= 0
     # Both outcomes were tried.

@@ -87,6 +87,9 @@ _WORKSPACE_CHECK_PERIOD = 1e-4
 # half a block (the executed peak speed times this margin), stand for the whole block: only the
 # blocks near a bound are checked at every period (same result, some 10 times fewer samples).
 _WORKSPACE_CHECK_STRIDE = 10
+# Such blocks are first tested in groups of this many, the same way (the margin this many
+# times larger): a slow leg (the curvature profile's, seconds long) is mostly far from a bound.
+_WORKSPACE_COARSE_BLOCKS = 16
 _WORKSPACE_SPEED_MARGIN = 1.01
 # The executed motion may cross a workspace bound by this much at a sample [m]: JTC's
 # interpolation wobbles by micrometres about a vertical segment on the boundary (a pick at
@@ -434,18 +437,19 @@ def _check_executed_workspace(trajectory, config, leg, speed=None):
     Checked at every ``_WORKSPACE_CHECK_PERIOD``; with ``speed``, the largest executed TCP
     speed [m/s], only where a sample every ``_WORKSPACE_CHECK_STRIDE`` periods is within
     the distance the TCP can cover in half that stride of a bound (the others are inside
-    at every instant, not only at the samples), with the same result.
+    at every instant, not only at the samples), and first in groups of
+    ``_WORKSPACE_COARSE_BLOCKS`` such strides, with the same result.
     """
     times = trajectory.time_from_start
     count = max(int(math.ceil((times[-1] - times[0]) / _WORKSPACE_CHECK_PERIOD)) + 1, 2)
     t = np.linspace(times[0], times[-1], count)
-    stride, margin = 1, 0.0
+    stride, coarse_blocks, margin = 1, 1, 0.0
     if speed is not None and math.isfinite(speed):
-        stride = _WORKSPACE_CHECK_STRIDE
+        stride, coarse_blocks = _WORKSPACE_CHECK_STRIDE, _WORKSPACE_COARSE_BLOCKS
         margin = _WORKSPACE_SPEED_MARGIN * max(speed, 0.0) * stride * (t[1] - t[0]) / 2.0
     workspace = config.workspace
     if _first_outside(times, trajectory.positions, trajectory.velocities,
-                      trajectory.accelerations, t, stride, margin,
+                      trajectory.accelerations, t, stride, coarse_blocks, margin,
                       *_kernel_geometry(config.geometry)[:5], workspace.radius, workspace.z_min,
                       workspace.z_max, workspace.box_table(),
                       _EXECUTED_WORKSPACE_TOLERANCE) < 0:
@@ -458,8 +462,9 @@ def _check_executed_workspace(trajectory, config, leg, speed=None):
 
 
 @kernel
-def _first_outside(knots, positions, velocities, accelerations, times, stride, margin, rx, ry,
-                   offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
+def _first_outside(knots, positions, velocities, accelerations, times, stride, coarse_blocks,
+                   margin, rx, ry, offset, upper, forearm_sq, radius, z_min, z_max, boxes,
+                   tolerance):
     """
     Return the first of ``times`` (evenly spaced) whose executed TCP leaves the workspace, or -1.
 
@@ -467,14 +472,43 @@ def _first_outside(knots, positions, velocities, accelerations, times, stride, m
     point held from the last knot on); a pose that cannot be assembled counts as outside.
     The times are taken in blocks of ``stride`` intervals: a block whose two ends are
     inside by ``margin`` (at least the distance the TCP covers in half a block) is inside
-    throughout; the samples of any other block are checked one by one, in order.
+    throughout; the samples of any other block are checked one by one, in order. Blocks of
+    ``coarse_blocks`` such blocks are tested the same way first, with ``coarse_blocks``
+    times the margin.
     """
     c = np.empty((6, 3))
     segment = np.full(1, -1)
     last = times.size - 1
+    # Blocks of ``coarse`` strides first: most of a leg is far from every bound.
+    coarse = stride * coarse_blocks
     start = 0
     start_clear = _executed_inside(knots, positions, velocities, accelerations, times[0], c,
                                    segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
+                                   z_max, boxes, tolerance - margin * coarse_blocks)
+    while start < last:
+        end = min(start + coarse, last)
+        end_clear = _executed_inside(knots, positions, velocities, accelerations, times[end],
+                                     c, segment, rx, ry, offset, upper, forearm_sq, radius,
+                                     z_min, z_max, boxes, tolerance - margin * coarse_blocks)
+        if not (start_clear and end_clear):
+            row = _first_outside_between(knots, positions, velocities, accelerations, times,
+                                         start, end, stride, margin, c, segment, rx, ry, offset,
+                                         upper, forearm_sq, radius, z_min, z_max, boxes,
+                                         tolerance)
+            if row >= 0:
+                return row
+        start, start_clear = end, end_clear
+    return -1
+
+
+@kernel
+def _first_outside_between(knots, positions, velocities, accelerations, times, first, last,
+                           stride, margin, c, segment, rx, ry, offset, upper, forearm_sq,
+                           radius, z_min, z_max, boxes, tolerance):
+    """Return :func:`_first_outside` of the rows ``first`` to ``last`` of ``times``, or -1."""
+    start = first
+    start_clear = _executed_inside(knots, positions, velocities, accelerations, times[first],
+                                   c, segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
                                    z_max, boxes, tolerance - margin)
     while start < last:
         end = min(start + stride, last)
