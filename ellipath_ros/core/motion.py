@@ -363,16 +363,19 @@ class TimedMotion:
             [m/s**3]), each of shape (N,).
 
         """
-        by_pieces = isinstance(self.law, _Sequence)
-        if by_pieces:
-            t = np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale, self.duration)
-        else:
-            t = _grid_times(self)
+        t = self._norm_times()
         s, states, norms, peaks = _sampled(self, t)
         object.__setattr__(self, '_peaks', peaks)
-        if not by_pieces:
+        if not isinstance(self.law, _Sequence):
             object.__setattr__(self, '_states', (t, *states))
         return (s, *norms)
+
+    def _norm_times(self):
+        """Return the sorted sample times [s] (N,) of :meth:`sampled_norms`."""
+        if isinstance(self.law, _Sequence):
+            return np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale,
+                              self.duration)
+        return _grid_times(self)
 
     def sampled_states(self):
         """
