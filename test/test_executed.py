@@ -22,7 +22,7 @@ from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.joint_trajectory import executed_peaks, minimal_knots
 from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import _EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
-from ellipath_ros.core.timing import _within_limits, time_motion
+from ellipath_ros.core.timing import _around, _SAFETY_REFINE, _within_limits, time_motion
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
@@ -170,3 +170,30 @@ def test_safety_net_slows_a_motion_down_just_enough():
     # Just enough: one of them within 0.5 % of its limit.
     assert max(speed / tight.max_speed, accel / tight.max_accel,
                jerk / tight.max_jerk) > 0.995
+
+
+def test_safety_net_samples_again_only_next_to_the_marked_samples():
+    t = np.array([0.0, 1.0, 3.0, 4.0, 8.0, 9.0])
+    close = np.array([False, False, False, False, False, True])
+    # The last sample: the one interval before it, _SAFETY_REFINE steps, ends included.
+    np.testing.assert_allclose(_around(t, close), np.linspace(8.0, 9.0, _SAFETY_REFINE + 1))
+    close = np.array([True, False, True, False, False, False])
+    found = _around(t, close)
+    expected = np.unique(np.concatenate((np.linspace(0.0, 1.0, _SAFETY_REFINE + 1),
+                                         np.linspace(1.0, 3.0, _SAFETY_REFINE + 1),
+                                         np.linspace(3.0, 4.0, _SAFETY_REFINE + 1))))
+    np.testing.assert_allclose(found, expected)
+    assert found.min() == 0.0 and found.max() == 4.0
+
+
+def test_safety_net_finds_a_peak_between_samples_as_a_dense_check_does():
+    """Limits just under the motion's sampled jerk peak: slowed as much as a 1 MHz check asks."""
+    fast = time_motion(leg_of().path, CartesianLimits())
+    t = np.arange(0.0, fast.duration, 1e-6)
+    _, velocity, acceleration, jerk = fast.state_at(t)
+    dense_jerk = np.linalg.norm(jerk, axis=1).max()
+    # Speed and acceleration far from their limits: only the jerk's peak breaks one.
+    tight = CartesianLimits(max_speed=10.0, max_accel=200.0, max_jerk=0.999 * dense_jerk)
+    slowed = _within_limits(fast, tight, None)
+    needed = (dense_jerk / tight.max_jerk) ** (1.0 / 3.0)
+    assert needed <= slowed.time_scale <= needed * (1.0 + 3e-3)

@@ -218,11 +218,11 @@ class _Scan:
 
     def rows(self, time):
         """Return the pieces (duration, s, s', s'', s''') from the start to ``time``."""
-        return _rows(self.states, self.count, time).tolist()
+        return _rows(self.states, self.count, time)
 
     def reversed_rows(self, time, length):
         """Return the forward-time pieces of a backward scan from ``time`` back to its start."""
-        return _reversed_rows(self.states, self.count, time, length).tolist()
+        return _reversed_rows(self.states, self.count, time, length)
 
 
 # -- the kernels ------------------------------------------------------------------------------

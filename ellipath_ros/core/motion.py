@@ -138,6 +138,10 @@ def _pieces_law(rows, s_offset=0.0):
 
 
 def _rows_duration(rows):
+    """Return the duration [s] of the pieces ``rows``: an array (K, 5), or a list of rows."""
+    if isinstance(rows, np.ndarray):
+        # The scans' rows stay arrays: hundreds of pieces, summed without a Python loop.
+        return float(np.sum(rows[:, 0]))
     return float(sum(row[0] for row in rows))
 
 
@@ -363,15 +367,18 @@ class TimedMotion:
             [m/s**3]), each of shape (N,).
 
         """
-        by_pieces = isinstance(self.law, _Sequence)
-        if by_pieces:
-            t = np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale, self.duration)
-        else:
-            t = _grid_times(self)
+        t = self._norm_times()
         s, states, norms, peaks = _sampled(self, t)
         object.__setattr__(self, '_peaks', peaks)
         object.__setattr__(self, '_states', (t, *states))
         return (s, *norms)
+
+    def _norm_times(self):
+        """Return the sorted sample times [s] (N,) of :meth:`sampled_norms`."""
+        if isinstance(self.law, _Sequence):
+            return np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale,
+                              self.duration)
+        return _grid_times(self)
 
     def sampled_states(self):
         """

@@ -393,7 +393,7 @@ class _ArcPlanner:
             left, entry, _ = self._hill(s_a, state_a, s_v, valley, free_a, False, depth + 1)
             right, _, exit_state = self._hill(s_v, valley, s_b, state_b, False, free_b,
                                               depth + 1)
-            return left + right, entry, exit_state
+            return np.concatenate((left, right)), entry, exit_state
 
         s_v = float(self.grid[index])
         speed, failed = float(self.ceiling[index]) * _VALLEY_SHARE, None
@@ -425,7 +425,7 @@ class _ArcPlanner:
         """Return the rows forward scan -> one piece -> backward scan (see :func:`_join`)."""
         joined, rows = _join(self.forward.parts(), forward.parts(), backward.parts(),
                              self.length)
-        return rows.tolist() if joined else None
+        return rows if joined else None
 
     def fallback(self, v_in, v_out):
         """
@@ -465,7 +465,7 @@ class _ArcPlanner:
                 index = max(index - 1, 0)
             else:
                 speeds[index + 1] *= 0.7
-        rows = [row for piece in pieces for row in piece]
+        rows = np.array([row for piece in pieces for row in piece])
         return rows, (speeds[0], 0.0), (speeds[-1], 0.0)
 
 

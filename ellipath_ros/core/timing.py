@@ -33,16 +33,19 @@ from .curvature_profile import _curvature_motion
 from .errors import InvalidInputError, require_range
 from .geometry import PickPlacePath
 from .limits import _cap_values, CartesianLimits
-from .motion import _check_times, _sampled, PROFILES
+from .motion import _sampled, PROFILES
 from .optimal_profile import _optimal_motion
 
-# When the final limit check finds a limit broken, it measures again with samples this far
-# apart [s] divided by _SAFETY_REFINE (at most that many times _SAFETY_CHECK_SAMPLES) and adds
-# _SAFETY_SLACK to the slow-down.
-_SAFETY_CHECK_PERIOD = 2.5e-4
-_SAFETY_CHECK_SAMPLES = 4000
+# When the final limit check finds a limit broken, it measures again around the samples
+# within _SAFETY_WINDOW of breaking one (as a share of the slow-down each needs), with
+# _SAFETY_REFINE times as many samples there, and adds _SAFETY_SLACK to the slow-down.
+# The window lies above every share the constructions aim at (the speed's 0.999 is the
+# closest, 1 - 1e-3), so that their long stretches at the targets are not sampled again;
+# what it leaves out is at least that far below a limit on the samples.
+_SAFETY_WINDOW = 5e-4
 _SAFETY_REFINE = 8
 _SAFETY_SLACK = 2e-3
+_SAFETY_NARROW = 1e-6
 
 
 def _within_limits(motion, limits, speed_cap):
@@ -52,19 +55,42 @@ def _within_limits(motion, limits, speed_cap):
     The motion is sampled as its metrics are (:meth:`TimedMotion.sampled_norms`,
     which keeps the peaks for them, each refined between its samples). A
     construction that breaks a limit has missed something sharp (a bend
-    tighter than its tables): the factor is then measured on a grid of period
-    ``_SAFETY_CHECK_PERIOD / _SAFETY_REFINE`` (at most
-    ``_SAFETY_CHECK_SAMPLES * _SAFETY_REFINE`` samples) and given
-    ``_SAFETY_SLACK`` on top, for what falls between even those samples.
+    tighter than its tables), within a few samples of a peak: the factor is
+    then measured again between the neighbours of every sample within
+    ``_SAFETY_WINDOW`` of breaking a limit, ``_SAFETY_REFINE`` times as densely,
+    and given ``_SAFETY_SLACK`` on top, for what falls between even those samples.
     """
-    s, speed = motion.sampled_norms()[:2]
+    s, speed, accel, jerk = motion.sampled_norms()
     factor = _excess(s, speed, motion._peaks, limits, speed_cap)
     if factor <= 1.0:
         return motion
-    period = max(_SAFETY_CHECK_PERIOD, motion.duration / _SAFETY_CHECK_SAMPLES)
-    s, _, norms, peaks = _sampled(motion, _check_times(motion, period / _SAFETY_REFINE))
+    needed = np.maximum.reduce([
+        speed / limits.max_speed, np.sqrt(accel / limits.max_accel),
+        np.cbrt(jerk / limits.max_jerk)])
+    if speed_cap is not None:
+        needed = np.maximum(needed, speed / _cap_values(speed_cap, s))
+    times = _around(motion._norm_times(), needed >= 1.0 - _SAFETY_WINDOW)
+    s, _, norms, peaks = _sampled(motion, times)
     factor = max(factor, _excess(s, norms[0], peaks, limits, speed_cap))
     return motion.scaled(factor * (1.0 + _SAFETY_SLACK))
+
+
+def _around(t, close):
+    """
+    Return sorted times between the neighbours of each sample of ``t`` (N,) marked ``close``.
+
+    ``_SAFETY_REFINE`` even steps across each interval next to a marked sample, its
+    ends included; an interval shorter than ``_SAFETY_NARROW`` of the span of ``t``
+    (the two samples just off a piece bound) only by its ends: three samples within
+    rounding of a bound would refine a step of the path's curvature there as a peak.
+    """
+    marked = np.flatnonzero(close)
+    starts = np.unique(np.concatenate((marked - 1, marked)).clip(0, t.size - 2))
+    steps = np.arange(_SAFETY_REFINE + 1) / _SAFETY_REFINE
+    widths = t[starts + 1] - t[starts]
+    widths[widths < _SAFETY_NARROW * (t[-1] - t[0])] = 0.0
+    return np.unique(np.concatenate((t[starts, None] + widths[:, None] * steps,
+                                     t[starts + 1, None]), axis=None))
 
 
 def _excess(s, speed, peaks, limits, speed_cap):
