@@ -298,7 +298,11 @@ class EllipathNode(Node):
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
         intake_group = MutuallyExclusiveCallbackGroup()
-        self._intake_group = intake_group  # see report_stop
+        # Held by the intake callbacks and report_stop: rclpy's executor shutdown does not wait
+        # for the callbacks already handed to its thread pool. Once report_stop has run,
+        # intake is closed.
+        self._intake_lock = threading.RLock()
+        self._intake_closed = False
         pick_place = self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
                                               INTAKE_QOS, callback_group=intake_group)
         pick = self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_QOS,
@@ -368,16 +372,12 @@ class EllipathNode(Node):
         left waiting for their place. Waits up to ``timeout`` for an intake callback still
         running in the executor's pool (rclpy's executor shutdown does not wait for them).
         """
-        deadline = time.monotonic() + timeout
-        # Taken as the executor takes the group for a callback of one of its entities.
-        entity = self._intake_routes[0][0]
-        while not self._intake_group.beginning_execution(entity):
-            if time.monotonic() > deadline:
-                self.get_logger().error(
-                    f'stop: intake still busy after {timeout:g} s: queued pairs not reported')
-                return
-            time.sleep(RELEASE_SPIN)
+        if not self._intake_lock.acquire(timeout=timeout):
+            self.get_logger().error(
+                f'stop: intake still busy after {timeout:g} s: queued pairs not reported')
+            return
         try:
+            self._intake_closed = True
             self._pairing.expire_all_places('before the node stopped')
             self._expire_places()
             dropped = sorted(self._sequencer.take_dropped_while_stopped()
@@ -393,7 +393,7 @@ class EllipathNode(Node):
                 + f'; {picks} picks waiting for their place dropped', values)
             self.publish_intake_statuses(final=True)
         finally:
-            self._intake_group.ending_execution(entity)
+            self._intake_lock.release()
 
     def stop_workers(self, timeout=SHUTDOWN_WAIT):
         """Stop the planning and release threads; wait up to ``timeout`` s for each."""
@@ -482,6 +482,15 @@ class EllipathNode(Node):
         self._read_intake(self._intake_routes[1], message)
 
     def _read_intake(self, route, message):
+        """Read intake as _read_batch does, unless report_stop has closed it."""
+        with self._intake_lock:
+            if self._intake_closed:
+                self.get_logger().warn(f'{route[1]}: read after the stop was reported: not '
+                                       'counted')
+                return
+            self._read_batch(route, message)
+
+    def _read_batch(self, route, message):
         """
         Handle ``message`` (of ``route``), then up to INTAKE_BATCH more that DDS holds.
 
@@ -561,8 +570,13 @@ class EllipathNode(Node):
         STATUS_PERIOD; intake callback group only. Once stopped only the ``final`` call of
         report_stop publishes.
         """
-        if self._sequencer.stopped and not final:
-            return  # shutting down: report_stop publishes what is kept
+        with self._intake_lock:
+            if self._sequencer.stopped and not final:
+                return  # shutting down: report_stop publishes what is kept
+            self._publish_kept_statuses(final)
+
+    def _publish_kept_statuses(self, final):
+        """Publish what publish_intake_statuses publishes; the intake lock is held."""
         self._expire_places()
         self._intake_published = time.monotonic()
         statuses, self._intake_statuses = self._intake_statuses, []
@@ -1250,7 +1264,7 @@ def _watch_signals(stop, finished, on_stop):
 
 def main(args=None):
     """
-    Run ``ellipath_node`` until SIGINT or SIGTERM; return the process exit code.
+    Run ``ellipath_node`` until SIGINT or SIGTERM, then end the process with its exit code.
 
     A signal stops the node within ``SPIN_PERIOD``: the planning thread finishes the plan in
     progress, if any (up to ``SHUTDOWN_WAIT``), nothing more is released, the pairs and places
@@ -1319,7 +1333,15 @@ def main(args=None):
             node.destroy_node()
         rclpy.try_shutdown()
         finished.set()
-    return exit_code
+    # Not a return to the interpreter's exit: its finalization (module teardown, the
+    # libraries' destructors) took 5 to 6 s after this point at a load average of 8, while
+    # main()'s whole shutdown took 0.1 to 0.2 s, and 10 s with six nodes at a load of 11;
+    # meanwhile SIGINT and SIGTERM are back at their default actions, so a node that had
+    # stopped looked hung and a second SIGINT killed it (issue 13, item 5; docs/reliability.md,
+    # "Signals"). Everything is shut down and flushed by now: the process ends here.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(exit_code)
 
 
 if __name__ == '__main__':
