@@ -154,13 +154,13 @@ def _wait_ready(process, log_path, timeout=60.0):
 
 
 def run_once(command, sig, idle, wait, log_path, gdb=False, from_start=False, pairs=0,
-             sender=None, namespace='/signal_stop_check'):
+             sender=None, namespace='/signal_stop_check', start_timeout=60.0):
     """Start ``command``, idle, send ``sig`` once; return (outcome, seconds to exit)."""
     env = dict(os.environ, PYTHONFAULTHANDLER='1', PYTHONUNBUFFERED='1',
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
     with open(log_path, 'w') as log:
         process = subprocess.Popen(command, env=env, stdout=log, stderr=subprocess.STDOUT)
-        if not from_start and not _wait_ready(process, log_path):
+        if not from_start and not _wait_ready(process, log_path, start_timeout):
             process.kill()
             process.wait()
             return 'never ready', None
@@ -210,6 +210,8 @@ def main():
                         help='count the idle time from the process start, not the ready line')
     parser.add_argument('--gdb', action='store_true',
                         help='before aborting a hung node, log the native stacks with gdb')
+    parser.add_argument('--start-timeout', type=float, default=60.0,
+                        help='seconds a node may take to its ready line (else: never ready)')
     parser.add_argument('--pairs', type=int, default=0,
                         help='pick_place pairs sent once the node is ready; idle counts from them')
     parser.add_argument('--slow-plan', action='store_true',
@@ -233,7 +235,7 @@ def main():
                    *(SLOW_PLAN if options.slow_plan else ())]
         return run_once(command, sig, idles[run], options.wait,
                         log_dir / f'run_{run:03d}.log', options.gdb, options.from_start,
-                        options.pairs, sender, namespace)
+                        options.pairs, sender, namespace, options.start_timeout)
 
     try:
         with ThreadPoolExecutor(options.jobs) as pool:
