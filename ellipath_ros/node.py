@@ -298,6 +298,11 @@ class EllipathNode(Node):
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
         intake_group = MutuallyExclusiveCallbackGroup()
+        # Held by the intake callbacks and report_stop: rclpy's executor shutdown does not wait
+        # for the callbacks already handed to its thread pool. Once report_stop has run,
+        # intake is closed.
+        self._intake_lock = threading.RLock()
+        self._intake_closed = False
         pick_place = self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
                                               INTAKE_QOS, callback_group=intake_group)
         pick = self.create_subscription(PoseStamped, 'pick_pose', self._on_pick, INTAKE_QOS,
@@ -355,6 +360,40 @@ class EllipathNode(Node):
         # and an executor that has already taken the timer as ready then calls a cancelled
         # timer, which raises RCLError ('timer is canceled') out of spin_once (a SIGINT right
         # after start-up exited with status 1). Once stopped, its callback does nothing.
+
+    def report_stop(self, timeout=SHUTDOWN_WAIT):
+        """
+        Give each pair and place still in the node at the stop its status, with the ledger.
+
+        Called once the workers have stopped and the executor is shut down (main()): the pairs
+        waiting, held, or dropped by a worker after the stop are dropped as ``stopped``, the
+        places waiting for their pick rejected as ``unpaired``, and the intake statuses not
+        yet published go out with one final status naming them (``pairs``) and the picks
+        left waiting for their place. Waits up to ``timeout`` for an intake callback still
+        running in the executor's pool (rclpy's executor shutdown does not wait for them).
+        """
+        if not self._intake_lock.acquire(timeout=timeout):
+            self.get_logger().error(
+                f'stop: intake still busy after {timeout:g} s: queued pairs not reported')
+            return
+        try:
+            self._intake_closed = True
+            self._pairing.expire_all_places('before the node stopped')
+            self._expire_places()
+            dropped = sorted(self._sequencer.take_dropped_while_stopped()
+                             + self._sequencer.clear('stopped'))
+            picks = self._pairing.counts()['pending']
+            values = {'topic': 'stop', 'kind': 'stopped'}
+            if dropped:
+                values.update(pairs=number_ranges(dropped), pair_count=len(dropped))
+            self._intake_status(
+                DiagnosticStatus.WARN if dropped or picks else DiagnosticStatus.OK,
+                f'stopped: {len(dropped)} pairs dropped, not released'
+                + (f' (pairs {values["pairs"]})' if dropped else '')
+                + f'; {picks} picks waiting for their place dropped', values)
+            self.publish_intake_statuses(final=True)
+        finally:
+            self._intake_lock.release()
 
     def stop_workers(self, timeout=SHUTDOWN_WAIT):
         """Stop the planning and release threads; wait up to ``timeout`` s for each."""
@@ -443,6 +482,15 @@ class EllipathNode(Node):
         self._read_intake(self._intake_routes[1], message)
 
     def _read_intake(self, route, message):
+        """Read intake as _read_batch does, unless report_stop has closed it."""
+        with self._intake_lock:
+            if self._intake_closed:
+                self.get_logger().warn(f'{route[1]}: read after the stop was reported: not '
+                                       'counted')
+                return
+            self._read_batch(route, message)
+
+    def _read_batch(self, route, message):
         """
         Handle ``message`` (of ``route``), then up to INTAKE_BATCH more that DDS holds.
 
@@ -512,17 +560,23 @@ class EllipathNode(Node):
             self._status_name, self.get_fully_qualified_name(), level, message,
             {**values, **self._queue_values()}))
 
-    def publish_intake_statuses(self):
+    def publish_intake_statuses(self, final=False):
         """
         Publish the intake statuses kept since the last call, in one /diagnostics message.
 
         The pairs a full queue rejected are named together, per topic, in one WARN status
         (``pairs``: their numbers as ranges; the reason given for the first one), with the
         ledger as it is now. Called by the intake callbacks and by a timer every
-        STATUS_PERIOD; intake callback group only.
+        STATUS_PERIOD; intake callback group only. Once stopped only the ``final`` call of
+        report_stop publishes.
         """
-        if self._sequencer.stopped:
-            return  # shutting down: nothing is published, the context may be going
+        with self._intake_lock:
+            if self._sequencer.stopped and not final:
+                return  # shutting down: report_stop publishes what is kept
+            self._publish_kept_statuses(final)
+
+    def _publish_kept_statuses(self, final):
+        """Publish what publish_intake_statuses publishes; the intake lock is held."""
         self._expire_places()
         self._intake_published = time.monotonic()
         statuses, self._intake_statuses = self._intake_statuses, []
@@ -538,7 +592,7 @@ class EllipathNode(Node):
                 self._status_name, self.get_fully_qualified_name(), DiagnosticStatus.WARN,
                 reason, {**values, **self._queue_values()}))
         self._queue_full = {}
-        if statuses and not self._sequencer.stopped:
+        if statuses and (final or not self._sequencer.stopped):
             self._diagnostics_publisher.publish(serialized_diagnostic_array(
                 self.get_clock().now().to_msg(), statuses))
 
@@ -1210,10 +1264,11 @@ def _watch_signals(stop, finished, on_stop):
 
 def main(args=None):
     """
-    Run ``ellipath_node`` until SIGINT or SIGTERM; return the process exit code.
+    Run ``ellipath_node`` until SIGINT or SIGTERM, then end the process with its exit code.
 
     A signal stops the node within ``SPIN_PERIOD``: the planning thread finishes the plan in
-    progress, if any (up to ``SHUTDOWN_WAIT``), nothing more is released, the messages already
+    progress, if any (up to ``SHUTDOWN_WAIT``), nothing more is released, the pairs and places
+    still in the node get their statuses (see EllipathNode.report_stop), the messages
     published are flushed, then the node and the context are shut down, and
     the exit code is 0. If that is not done ``STOP_DEADLINE`` after the signal, an error is
     logged and the process exits with status 0 anyway.
@@ -1264,6 +1319,12 @@ def main(args=None):
             # them publishes or logs while the executor and the context go down.
             node.stop_workers()
         executor.shutdown()
+        if node is not None and node.context.ok():
+            try:
+                node.report_stop()
+            except Exception as error:  # a failed report must not keep the process
+                get_logger(NODE_NAME).error(
+                    f'stop: statuses not published: {type(error).__name__}: {error}')
         if node is not None:
             # A trajectory published just before the stop must still reach its subscribers: a
             # large one leaves in fragments after publish() returns.
@@ -1272,7 +1333,15 @@ def main(args=None):
             node.destroy_node()
         rclpy.try_shutdown()
         finished.set()
-    return exit_code
+    # Not a return to the interpreter's exit: its finalization (module teardown, the
+    # libraries' destructors) took 5 to 6 s after this point at a load average of 8, while
+    # main()'s whole shutdown took 0.1 to 0.2 s, and 10 s with six nodes at a load of 11;
+    # meanwhile SIGINT and SIGTERM are back at their default actions, so a node that had
+    # stopped looked hung and a second SIGINT killed it (issue 13, item 5; docs/reliability.md,
+    # "Signals"). Everything is shut down and flushed by now: the process ends here.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(exit_code)
 
 
 if __name__ == '__main__':

@@ -331,14 +331,17 @@ def check_trajectories(trajectories, sent_ids, geometry):
 
 
 def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, out=None,
-        drain_timeout=DRAIN_TIMEOUT, stream='mixed'):
+        drain_timeout=DRAIN_TIMEOUT, stream='mixed', warm_up=None):
     """
     Flood a fresh node and return the report (a dict); see the module docstring.
 
     Pairs are offered at ``rate`` for ``seconds`` (wall time): a pair not yet offered when
-    the time is up (the sender was slowed by refusals) is not sent. ``out`` (a file)
-    receives progress lines, e.g. RSS samples; None for silence.
+    the time is up (the sender was slowed by refusals) is not sent. ``warm_up``: (pairs,
+    rate) offered first, at that rate, within the ``seconds`` (scripts/soak.py). ``out`` (a
+    file) receives progress lines, e.g. RSS samples; None for silence.
     """
+    warm_up_pairs, warm_up_rate = warm_up or (0, rate)
+    warm_up_seconds = warm_up_pairs / warm_up_rate
     domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0'))
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1')
@@ -360,12 +363,13 @@ def run(rate, seconds, seed=1, rss_every=1.0, invalid_share=0.02, log_dir=None, 
         rss = [(0.0, resident_kib(process.pid))]
         cpu_at_start = cpu_seconds(process.pid)
         memory = []  # one sample per rss_every: see _memory_sample
-        offered = int(round(rate * seconds))
+        offered = warm_up_pairs + int(round(rate * max(0.0, seconds - warm_up_seconds)))
         sent, sent_at, invalid = {}, {}, {}
         started = time.monotonic()
         next_sample = started + rss_every
         for pair_id in range(offered):
-            due = started + pair_id / rate
+            due = started + (pair_id / warm_up_rate if pair_id < warm_up_pairs else
+                             warm_up_seconds + (pair_id - warm_up_pairs) / rate)
             now = time.monotonic()
             if now >= started + seconds:
                 break  # slowed down by refusals: the time is up

@@ -30,10 +30,16 @@ per plan after the first sample, and its system part.
 for ``--minutes`` (the flood of ``scripts/flood.py`` at a low rate, so that the queue stays
 busy without being flooded). Every ``--every`` seconds the node's VmRSS and its parts
 (anonymous, file-backed, shared memory) are sampled with how many statuses and trajectories
-it had published. The warm-up ends when every bounded buffer that the pairs fill is full
-(see BUFFERS): the growth reported is the growth after it, and the verdict is ``flat`` when
-the least-squares line through the samples after the warm-up rises by at most
-``--flat-kib`` over that time, for VmRSS and for its anonymous part.
+it had published. The first ``--warm-up-pairs`` pairs (1,000) are sent at ``--warm-up-rate``
+(1.6 pairs/s), the rest at ``--rate``. The warm-up ends when every bounded buffer that the
+pairs fill is full and the node has planned as many pairs as the planner takes to fill its
+own caches (see BUFFERS, WARM_UP_PLANS): the growth reported is the growth after it, and the
+verdict is ``flat`` when the least-squares line through the samples after the warm-up rises
+by at most ``--flat-kib`` over that time, for VmRSS and for its anonymous part.
+
+One SIGINT or SIGTERM stops either soak, also when started in the background with SIGINT
+ignored: ``plans`` after the plan in progress, printing the summary of the plans done;
+``node`` stops its node and exits with status 1 without a report.
 
     .venv/bin/python scripts/soak.py plans --plans 100000 --trim
     ROS_DOMAIN_ID=61 .venv/bin/python scripts/soak.py node --minutes 30 --rate 1
@@ -43,7 +49,9 @@ import argparse
 import ctypes
 import json
 import os
+import signal
 import sys
+import threading
 import time
 
 from ellipath_ros.core.errors import EllipathError
@@ -67,8 +75,19 @@ DISTINCT_PAIRS = 500
 # counting the warm-up until they could be full is the cautious bound. The intake's
 # KEEP_ALL histories, the cycle queue and the waiting picks hold what the node has not yet
 # read or planned, a few pairs at a rate the node keeps up with.
+# The planner's own fill: in one process the Python heap and the memory in use rise over the
+# first ~1,000 plans (CPython's free lists, NumPy's caches, the kernels' first calls on new
+# code paths) and are level after it (docs/reliability.md, "The node over time": the plans
+# soak every 50 plans). In the node the warm-up waits for as many trajectories, sent at
+# --warm-up-rate so that it does not take most of a 30-minute run at 1 pair/s.
+WARM_UP_PLANS = 1_000
+# A default cycle of the soak's pairs lasts 0.42 to 0.53 s and the node releases them back to
+# back: up to about 1.9 pairs/s. Below that every warm-up pair is planned (none queue_full),
+# and 1,000 take about 10 minutes.
+WARM_UP_RATE = 1.6  # pairs/s
 BUFFERS = {'diagnostics_history': ('statuses', DIAGNOSTICS_DEPTH),
-           'trajectory_history': ('trajectories', default_of('queue_depth'))}
+           'trajectory_history': ('trajectories', default_of('queue_depth')),
+           'planner_fill': ('trajectories', WARM_UP_PLANS)}
 # Growth after the warm-up still called flat [KiB] (the samples move by a few hundred KiB
 # as large NumPy arrays are mapped and unmapped, see node.MALLOC_MMAP_THRESHOLD).
 FLAT_KIB = 256
@@ -82,8 +101,13 @@ def random_point(rng):
     return np.array([radius * np.cos(angle), radius * np.sin(angle), rng.uniform(-0.95, -0.7)])
 
 
-def soak_plans(plans, every, seed, trim=False):
-    """Plan ``plans`` cycles, print a JSON line per RSS sample, return the summary dict."""
+def soak_plans(plans, every, seed, trim=False, stop=None):
+    """
+    Plan ``plans`` cycles, print a JSON line per RSS sample, return the summary dict.
+
+    ``stop`` (a :class:`threading.Event`): once set, the run ends after the plan in progress
+    and the summary covers the plans done (``stopped`` true).
+    """
     # glibc only: malloc_trim(0) gives every wholly free page of every arena back.
     malloc_trim = ctypes.CDLL('libc.so.6').malloc_trim if trim else None
     rng = np.random.default_rng(seed)
@@ -94,6 +118,8 @@ def soak_plans(plans, every, seed, trim=False):
     planned = rejected = 0
     started = time.monotonic()
     for index in range(plans):
+        if stop is not None and stop.is_set():
+            break
         pick, place = pairs[index % DISTINCT_PAIRS]
         try:
             start = plan_cycle(start, pick, place, config).end_position
@@ -112,7 +138,9 @@ def soak_plans(plans, every, seed, trim=False):
                 sample['rss_trimmed_kib'] = flood.resident_kib(os.getpid())
             samples.append(sample)
             print(json.dumps(sample), flush=True)
-    return summary(samples, 'plans')
+    result = summary(samples, 'plans')
+    result.update(plans_done=planned + rejected, stopped=stop is not None and stop.is_set())
+    return result
 
 
 def summary(samples, count_key):
@@ -142,10 +170,18 @@ def summary(samples, count_key):
     return result
 
 
-def soak_node(minutes, rate, seed, every=10.0, flat_kib=FLAT_KIB):
-    """Run the node under ``rate`` pairs/s for ``minutes``; return the flood's report."""
+def soak_node(minutes, rate, seed, every=10.0, flat_kib=FLAT_KIB,
+              warm_up_pairs=WARM_UP_PLANS, warm_up_rate=WARM_UP_RATE):
+    """
+    Run the node for ``minutes``; return the flood's report with the memory verdict.
+
+    The first ``warm_up_pairs`` pairs are sent at ``warm_up_rate`` pairs/s, the rest at
+    ``rate`` (see WARM_UP_PLANS).
+    """
     report = flood.run(rate=rate, seconds=60.0 * minutes, seed=seed, rss_every=every,
-                       invalid_share=0.0, out=sys.stderr)
+                       invalid_share=0.0, out=sys.stderr,
+                       warm_up=(warm_up_pairs, warm_up_rate) if warm_up_pairs else None)
+    report.update(warm_up_pairs=warm_up_pairs, warm_up_rate=warm_up_rate)
     report['memory'] = memory_verdict(report.pop('memory_samples'), flat_kib)
     return report
 
@@ -203,6 +239,24 @@ def memory_verdict(samples, flat_kib=FLAT_KIB, buffers=BUFFERS):
     return result
 
 
+def stop_on_signals(stop):
+    """
+    Make SIGINT and SIGTERM set ``stop`` (``plans``) or raise KeyboardInterrupt (None).
+
+    Installed whatever this process inherited: a soak started in the background of a
+    non-interactive shell (``nohup ... &``) starts with SIGINT ignored, and one SIGINT did
+    not stop it (80,500 plans on eec5835); SIGTERM ended it without its summary.
+    KeyboardInterrupt ends ``node`` through flood.run's cleanup, which stops the node.
+    """
+    def handler(signum, frame):
+        if stop is None:
+            raise KeyboardInterrupt(signal.Signals(signum).name)
+        stop.set()
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, handler)
+
+
 def main():
     """Run the soak chosen on the command line and print its summary as JSON."""
     parser = argparse.ArgumentParser(description=__doc__.split('\n')[1])
@@ -220,12 +274,24 @@ def main():
     node.add_argument('--every', type=float, default=10.0, help='seconds between samples')
     node.add_argument('--flat-kib', type=float, default=FLAT_KIB,
                       help='growth after the warm-up still called flat [KiB]')
+    node.add_argument('--warm-up-pairs', type=int, default=WARM_UP_PLANS,
+                      help='pairs sent first at --warm-up-rate (0: none)')
+    node.add_argument('--warm-up-rate', type=float, default=WARM_UP_RATE,
+                      help='pairs per second during the warm-up')
     options = parser.parse_args()
     if options.command == 'plans':
-        result = soak_plans(options.plans, options.every, options.seed, options.trim)
+        stop = threading.Event()
+        stop_on_signals(stop)
+        result = soak_plans(options.plans, options.every, options.seed, options.trim, stop)
     else:
-        result = soak_node(options.minutes, options.rate, options.seed, options.every,
-                           options.flat_kib)
+        stop_on_signals(None)
+        try:
+            result = soak_node(options.minutes, options.rate, options.seed, options.every,
+                               options.flat_kib, options.warm_up_pairs, options.warm_up_rate)
+        except KeyboardInterrupt as interrupt:
+            print(json.dumps({'summary': {'stopped': True, 'signal': str(interrupt)}}),
+                  flush=True)
+            return 1
     print(json.dumps({'summary': result}), flush=True)
     return 0
 

@@ -255,9 +255,13 @@ valid_stamps = itertools.count(2**30)
 
 
 def _idle(node):
-    """Return whether the node holds no pair (waiting, being planned, held or releasing)."""
+    """Return whether the node holds no pair (waiting, planned, held, releasing, unpaired)."""
+    # As the node's timer does: a place the hostile inputs left waiting for its pick expires
+    # PLACE_WAIT later and is answered now, not in the middle of the next example.
+    node.publish_intake_statuses()
     counts = node.sequencer.counts()
-    return counts['queued'] == 0 and counts['releasing'] == 0
+    return (counts['queued'] == 0 and counts['releasing'] == 0
+            and node._pairing.waiting_places == 0)
 
 
 @settings(max_examples=VALID_EXAMPLES)

@@ -32,11 +32,16 @@ import sys
 import threading
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
 import ellipath_ros
+from ellipath_ros.conversions import numbers_in_ranges
+from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 import pytest
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from test_node import pose_array
+from test_node import values_of
 from test_node_process import _pose
 from test_node_process import _spin_until
 from trajectory_msgs.msg import JointTrajectory
@@ -91,6 +96,15 @@ class NodeProcess:
                         f'\n{"".join(self.lines)}')
         self._reader.join(timeout=5.0)
         return self.process.returncode, ''.join(self.lines)
+
+    def stop_spinning(self, executor, sig, settle):
+        """Send ``sig`` once, spin ``executor`` until the process ends and ``settle`` s more."""
+        self.process.send_signal(sig)
+        _spin_until(executor, lambda: self.process.poll() is not None, STOP_TIMEOUT)
+        _spin_until(executor, lambda: False, settle)
+        status, log = self.stop(None)
+        assert status == 0, log
+        assert 'Traceback' not in log, log
 
     def kill(self):
         """Kill the process if it still runs (test clean-up)."""
@@ -167,21 +181,84 @@ def test_one_signal_while_planning_stops_cleanly_and_releases_nothing(ros_env, r
         _spin_until(executor, lambda: received, 0.15)
         assert not received, 'the plan ended before the signal: make it slower'
         signalled = time.monotonic()
-        node.process.send_signal(sig)
         # Keep receiving until the process has ended: a trajectory released after the signal
         # would arrive in this window.
-        _spin_until(executor, lambda: node.process.poll() is not None, STOP_TIMEOUT)
-        _spin_until(executor, lambda: False, 0.2)
-        status, log = node.stop(None)
+        node.stop_spinning(executor, sig, 0.2)
     finally:
         executor.shutdown()
         client.destroy_node()
         node.kill()
-    assert status == 0, log
-    assert 'Traceback' not in log, log
     # The plan in progress when the signal came was not released after the stop.
     assert not received, (
         f'trajectory released {received[0] - signalled:.3f} s after the signal')
+
+
+def test_pairs_and_places_still_in_the_node_at_the_stop_get_their_statuses(
+        ros_env, ros_context):
+    node = NodeProcess(ros_env, f'/ellipath_signal_queue_{os.getpid()}', *SLOW_PLAN)
+    client = Node('signal_queue_client', context=ros_context, namespace=node.namespace)
+    executor = SingleThreadedExecutor(context=ros_context)
+    statuses = []  # this node's statuses (/diagnostics is shared by every node of the domain)
+    try:
+        executor.add_node(client)
+        pairs = client.create_publisher(PoseArray, 'pick_place', 10)
+        picks = client.create_publisher(PoseStamped, 'pick_pose', 10)
+        places = client.create_publisher(PoseStamped, 'place_pose', 10)
+        received = []
+        trajectories = client.create_subscription(
+            JointTrajectory, 'joint_trajectory', received.append, 10)
+        client.create_subscription(
+            DiagnosticArray, '/diagnostics', lambda message: statuses.extend(
+                status for status in message.status
+                if status.hardware_id.startswith(node.namespace)), 100)
+        assert node.ready.wait(START_TIMEOUT), ''.join(node.lines)
+        assert _spin_until(executor, lambda: (
+            pairs.get_subscription_count() and places.get_subscription_count()
+            and trajectories.get_publisher_count()), START_TIMEOUT), 'node not discovered'
+        for _ in range(3):  # sent again until it arrives (see the test above)
+            pairs.publish(pose_array((0.10, 0.05, -0.85), (-0.15, -0.10, -0.82)))
+            if _spin_until(executor, lambda: received, 20.0):
+                break
+        assert received, 'no trajectory for the first pair'
+        # The first slow plan runs (its motion, seconds long, keeps the next one held), the
+        # others wait; a pick waits for its place; the bad pair's immediate rejection carries
+        # the ledger once the node has read them.
+        for x in (0.0, 0.05, -0.05, 0.1):
+            pairs.publish(pose_array((-0.15, -0.10, -0.82), (x, -0.08, -0.88)))
+        pick = _pose(0.1, 0.1, -0.85)
+        pick.header.stamp.sec = 888
+        picks.publish(pick)
+        pairs.publish(pose_array((0.0, 0.0, -0.85), (0.1, 0.0, -0.85), frame_id='elsewhere'))
+        assert _spin_until(executor, lambda: any(
+            values_of(status).get('kind') == 'invalid_input' for status in statuses),
+            START_TIMEOUT), 'the bad pair was not rejected'
+        place = _pose(0.1, 0.1, -0.8)  # held for its pick (stamp 777) if read before the stop
+        place.header.stamp.sec = 777
+        places.publish(place)
+        _spin_until(executor, lambda: False, 0.1)
+        node.stop_spinning(executor, signal.SIGINT, 0.5)
+    finally:
+        executor.shutdown()
+        client.destroy_node()
+        node.kill()
+    final = [status for status in statuses if values_of(status).get('kind') == 'stopped']
+    assert len(final) == 1, [status.message for status in statuses]
+    ledger = values_of(final[0])  # the node's last status: nothing is counted after it
+    assert all(int(values_of(status).get('pairs_received', 0)) <= int(ledger['pairs_received'])
+               for status in statuses)
+    named = set()
+    for status in statuses:
+        values = values_of(status)
+        named.update([int(values['pair'])] if 'pair' in values else
+                     numbers_in_ranges(values.get('pairs', '')))
+    counted = int(ledger['pairs_received'])
+    assert counted >= 6, ledger  # the first pair (sent up to 3 times), 4 pairs, the bad one
+    assert set(range(1, counted + 1)) <= named, f'pairs without a status: {ledger}'
+    assert ledger['pairs_queued'] == '0' and ledger['pairs_releasing'] == '0', ledger
+    # At least three of the four waited behind the slow plan when the signal came.
+    assert int(ledger.get('pairs_dropped_stopped', 0)) >= 3, ledger
+    assert '1 picks waiting for their place dropped' in final[0].message
+    assert ledger['picks_pending'] == '1' and ledger['places_waiting'] == '0', ledger
 
 
 # Run by the tests below in a process of their own (the signal handlers are process-wide).

@@ -388,6 +388,52 @@ def test_clear_drops_waiting_planning_and_held_pairs_but_not_the_running_one(clo
     assert counts['dropped_cleared'] == 5
 
 
+def test_at_the_stop_every_pair_still_in_the_queue_is_dropped_and_named(clock):
+    sequencer = Sequencer(10, clock=clock)
+    for _ in range(6):
+        sequencer.submit(PICK, PLACE, 'pick_place')
+    plan_next(sequencer)
+    assert sequencer.take_for_release() is not None  # pair 1 taken for release
+    plan_next(sequencer)  # pair 2 held
+    request, start = sequencer.take_for_planning()  # pair 3 being planned
+    sequencer.stop()
+    # The workers end what they had: the plan is not held, the release not published.
+    assert sequencer.plan_finished(motion_of(request, start)) is None
+    sequencer.release_failed('stopped')
+    assert sequencer.take_dropped_while_stopped() == [3, 1]
+    assert sequencer.take_dropped_while_stopped() == []
+    # What still waits or is held: dropped as stopped by the one who stops.
+    assert sequencer.clear('stopped') == [2, 4, 5, 6]
+    counts = sequencer.counts()
+    assert (counts['dropped_stopped'], counts['queued'], counts['releasing']) == (6, 0, 0)
+    assert added_up(counts) and 'dropped_cleared' not in counts
+
+
+def test_a_plan_still_running_when_the_queue_is_dropped_counts_as_that_drop(clock):
+    sequencer = Sequencer(10, clock=clock)
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    sequencer.take_for_planning()
+    sequencer.stop()
+    assert sequencer.clear('stopped') == [1]  # named here: not again when its plan ends
+    assert not sequencer.plan_failed('unreachable')
+    assert sequencer.take_dropped_while_stopped() == []
+    counts = sequencer.counts()
+    assert (counts['dropped_stopped'], counts['rejected']) == (1, 0) and added_up(counts)
+
+
+def test_every_waiting_place_expires_at_once_with_the_reason():
+    pairing = PosePairing()
+    for stamp in ((1, 0), (2, 0)):
+        assert pairing.take_pick(stamp, 'stamp', wait=0.5, depth=10) is None
+        pairing.hold_place(stamp, f'place {stamp}', now=0.0, wait=0.5)
+    pairing.expire_all_places('before the node stopped')
+    errors = pairing.expired_places(0.0)  # long before their deadline
+    assert [error.kind for error in errors] == ['unpaired', 'unpaired']
+    assert all('before the node stopped' in str(error) for error in errors)
+    assert '(1, 0)' in str(errors[0]) and '(2, 0)' in str(errors[1])
+    assert pairing.waiting_places == 0
+
+
 def test_a_motion_that_fails_at_release_is_dropped_and_counted(sequencer, clock):
     sequencer.submit(PICK, PLACE, 'pick_place')
     plan_next(sequencer)

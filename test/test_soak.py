@@ -19,7 +19,9 @@ The long runs (30 minutes of the node, 100,000 plans) are scripts, see docs/reli
 the short soak here (15 s) only checks that the script's report is complete and honest.
 """
 
+import json
 import os
+import signal
 import subprocess
 import sys
 
@@ -29,7 +31,8 @@ import pytest
 
 ROS_DOMAIN_OFFSET = 7  # see conftest.py
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), 'scripts'))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, 'scripts'))
 import soak  # noqa: E402, I100 (scripts/ is not a package)
 
 BUFFERS = {'statuses_buffer': ('statuses', 100), 'trajectories_buffer': ('trajectories', 10)}
@@ -70,6 +73,17 @@ def test_growth_during_the_warm_up_is_not_counted_and_growth_after_it_is():
     never = soak.memory_verdict(samples(lambda t: 90_000, statuses_per_s=0.1),
                                 buffers=BUFFERS)
     assert never['verdict'] == 'no warm-up' and 'growth' not in never
+
+
+def test_the_warm_up_waits_for_the_planners_own_fill():
+    # At 2 trajectories/s the node's default buffers (1,000 statuses at 4/s: 250 s; 10
+    # trajectories: 5 s) are full long before the 1,000th plan (500 s): a rise until then,
+    # as the planner fills its caches, is not growth; one after it is.
+    filling = soak.memory_verdict(samples(lambda t: 90_000 + 2 * min(t, 500), seconds=1200))
+    assert filling['buffers']['planner_fill']['full_at_s'] == 500.0
+    assert filling['warm_up_end_s'] == 500.0 and filling['verdict'] == 'flat'
+    late = soak.memory_verdict(samples(lambda t: 90_000 + 2 * min(t, 800), seconds=1200))
+    assert late['verdict'] == 'growing'
 
 
 def test_the_verdict_fits_a_line_through_noisy_samples():
@@ -176,3 +190,24 @@ def test_a_short_soak_accounts_for_every_pair_and_claims_no_verdict(short_soak):
     # About 30 statuses: the /diagnostics history is far from full, so nothing is claimed.
     assert memory['buffers']['diagnostics_history']['full_at_s'] is None
     assert memory['verdict'] == 'no warm-up'
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_one_signal_stops_the_plans_soak_and_prints_the_summary(signum):
+    # Started with SIGINT ignored, as by `nohup ... &` from a script (one SIGINT did not stop
+    # a 100,000-plan soak started so): the soak installs its own handlers.
+    process = subprocess.Popen(
+        [sys.executable, os.path.join(ROOT, 'scripts', 'soak.py'), 'plans', '--plans',
+         '100000', '--every', '1'],
+        env=dict(os.environ, PYTHONPATH=ROOT), stdout=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        first = json.loads(process.stdout.readline())  # planning has begun
+        process.send_signal(signum)
+        output, _ = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert process.returncode == 0
+    summary = json.loads(output.splitlines()[-1])['summary']
+    assert summary['stopped'] is True
+    assert first['plans'] <= summary['plans_done'] < 100_000

@@ -157,11 +157,7 @@ class PosePairing:
                 self._drop('cleared', f'pick_pose (stamp {key}) dropped: pairing changed from '
                            f'{self._mode} to {mode}')
             self._pending.clear()
-            self._expired.extend(UnpairedPlaceError(
-                f'place_pose: expected a pick_pose with stamp {key} to pair with, got none '
-                f'before the pairing changed from {self._mode} to {mode}')
-                for key in self._places)
-            self._places.clear()
+            self.expire_all_places(f'before the pairing changed from {self._mode} to {mode}')
             self._mode = mode
         return None if mode == 'sequence' else stamp
 
@@ -229,6 +225,13 @@ class PosePairing:
                 f'place_pose: expected one place_pose per stamp, got a second with stamp '
                 f'{stamp} before its pick_pose: the first is dropped'))
         self._places[stamp] = (place, now + wait, wait)
+
+    def expire_all_places(self, why):
+        """Make every place waiting for its pick expire now (see :meth:`expired_places`)."""
+        self._expired.extend(UnpairedPlaceError(
+            f'place_pose: expected a pick_pose with stamp {key} to pair with, got none {why}')
+            for key in self._places)
+        self._places.clear()
 
     def expired_places(self, now):
         """
@@ -459,12 +462,15 @@ class Sequencer:
         self._condition = threading.Condition()
         self._waiting = deque()
         self._planning = None  # the request being planned
-        self._planning_cancelled = False
+        self._planning_cancelled = None  # the kind of the clear that dropped it, if any
         self._held = deque()
         self._releasing = None  # the motion taken by the release worker, not yet published
         self._last_release = None
         self._numbers = 0
         self._stopped = False
+        # Pairs the workers dropped once stopped (plan or release in progress), see
+        # take_dropped_while_stopped.
+        self._dropped_while_stopped = []
         self._counts = dict.fromkeys(COUNTERS, 0)
         self._kinds = Counter()  # (outcome, kind): pairs rejected or dropped, by kind
 
@@ -616,7 +622,7 @@ class Sequencer:
                 self._waiting.remove(request)
             else:
                 request = self._waiting.popleft()
-            self._planning, self._planning_cancelled = request, False
+            self._planning, self._planning_cancelled = request, None
             if self._held:
                 start = self._held[-1].end_position
             elif self._releasing is not None:
@@ -649,12 +655,11 @@ class Sequencer:
         sequencer stopped) while it was planned.
         """
         with self._condition:
-            self._planning = None
             self._counts['planned'] += 1
-            if self._planning_cancelled or self._stopped:
-                self._count('dropped', 'cleared' if self._planning_cancelled else 'stopped')
+            if self._drop_planning():
                 self._condition.notify_all()
                 return None
+            self._planning = None
             held = replace(motion, ready=self.clock())
             self._held.append(held)
             self._condition.notify_all()
@@ -668,14 +673,31 @@ class Sequencer:
         planned: the clear already reported it.
         """
         with self._condition:
-            self._planning = None
-            cancelled = self._planning_cancelled or self._stopped
-            if cancelled:
-                self._count('dropped', 'cleared' if self._planning_cancelled else 'stopped')
-            else:
+            cancelled = self._drop_planning()
+            if not cancelled:
+                self._planning = None
                 self._count('rejected', kind)
             self._condition.notify_all()
             return not cancelled
+
+    def _drop_planning(self):
+        """
+        Count the pair being planned as dropped if cleared or stopped; return whether it was.
+
+        The lock is held. One cleared was named by its clear; one dropped by the stop is kept
+        for :meth:`take_dropped_while_stopped`.
+        """
+        request, self._planning = self._planning, None
+        if self._planning_cancelled is not None:
+            self._count('dropped', self._planning_cancelled)
+        elif self._stopped:
+            self._count('dropped', 'stopped')
+            if request is not None:
+                self._dropped_while_stopped.append(request.number)
+        else:
+            self._planning = request
+            return False
+        return True
 
     # --- release ----------------------------------------------------------------------------
 
@@ -786,6 +808,8 @@ class Sequencer:
     def release_failed(self, kind='internal'):
         """Count the motion taken for release as dropped as ``kind`` (not published)."""
         with self._condition:
+            if self._stopped and self._releasing is not None:
+                self._dropped_while_stopped.append(self._releasing.request.number)
             self._releasing = None
             self._count('dropped', kind)
             self._condition.notify_all()
@@ -819,9 +843,9 @@ class Sequencer:
             self._condition.notify_all()
             return [request.number for request in reversed(requests)]
 
-    def clear(self):
+    def clear(self, kind='cleared'):
         """
-        Drop every pair waiting, being planned or held; never the running trajectory.
+        Drop every pair waiting, being planned or held as ``kind``; never the running trajectory.
 
         Returns
         -------
@@ -832,21 +856,39 @@ class Sequencer:
         with self._condition:
             dropped = [request.number for request in self._waiting]
             dropped += [motion.request.number for motion in self._held]
-            self._count('dropped', 'cleared', len(self._waiting) + len(self._held))
+            self._count('dropped', kind, len(self._waiting) + len(self._held))
             self._waiting.clear()
             self._held.clear()
-            if self._planning is not None and not self._planning_cancelled:
+            if self._planning is not None and self._planning_cancelled is None:
                 # Counted as dropped once its plan ends (plan_finished or plan_failed).
-                self._planning_cancelled = True
+                self._planning_cancelled = kind
                 dropped.append(self._planning.number)
             self._condition.notify_all()
             return sorted(dropped)
 
     def stop(self):
-        """Wake every blocked worker and make them return None from now on."""
+        """
+        Wake every blocked worker and make them return None from now on.
+
+        The pairs still queued stay so until :meth:`clear` (with kind ``stopped``); a plan or
+        a release in progress ends as dropped (``stopped``, see
+        :meth:`take_dropped_while_stopped`).
+        """
         with self._condition:
             self._stopped = True
             self._condition.notify_all()
+
+    def take_dropped_while_stopped(self):
+        """
+        Return the numbers of the pairs dropped by a worker once stopped; forget them.
+
+        A plan that ends after :meth:`stop` is not held (``dropped_stopped``), a motion taken
+        for release is not published (:meth:`release_failed`): their statuses are the
+        caller's, who stops.
+        """
+        with self._condition:
+            numbers, self._dropped_while_stopped = self._dropped_while_stopped, []
+            return numbers
 
 
 def _latch_order(request):
