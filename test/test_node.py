@@ -34,7 +34,6 @@ from ellipath_ros import node as node_module
 from ellipath_ros.conversions import duration_from_seconds
 from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import joint_trajectory_data
-from ellipath_ros.conversions import key_values
 from ellipath_ros.conversions import number_ranges
 from ellipath_ros.conversions import numbers_in_ranges
 from ellipath_ros.conversions import seconds_from_duration
@@ -109,12 +108,6 @@ def test_joint_positions_are_picked_by_name():
                                    JOINT_NAMES) is None
     assert joint_positions_by_name(JointState(name=JOINT_NAMES, position=[0.1, math.nan, 0.0]),
                                    JOINT_NAMES) is None
-
-
-def test_key_values_format_numbers_and_text():
-    values = key_values({'duration': 0.123456789012, 'count': 80, 'policy': 'paper'})
-    assert [(item.key, item.value) for item in values] == [
-        ('duration', '0.123456789'), ('count', '80'), ('policy', 'paper')]
 
 
 def test_pair_numbers_are_written_as_ranges_and_read_back():
