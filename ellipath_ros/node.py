@@ -1316,6 +1316,7 @@ def main(args=None):
     exit_code = 0
     try:
         node = EllipathNode()
+        freeze_start_up_objects()
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
