@@ -388,6 +388,24 @@ def test_the_next_cycle_starts_where_the_last_one_ended(make_harness):
     assert stamp > before, 'header_stamp ahead: publication + release_lead'
 
 
+def test_free_memory_is_given_back_after_a_plan_at_most_once_per_trim_period(
+        make_harness, monkeypatch):
+    trims = []
+    monkeypatch.setattr(node_module, 'release_free_memory',
+                        lambda: trims.append(time.monotonic()))
+    harness = make_harness()
+    harness.cycle(PICK, PLACE)
+    assert harness.spin_until(lambda: len(trims) == 1), 'after the first plan'
+    assert harness.idle()
+    harness.cycle(OTHER_PICK, PICK)
+    harness.spin_for(SETTLE)
+    assert len(trims) == 1, 'the second plan came within MALLOC_TRIM_PERIOD of the first'
+    monkeypatch.setattr(node_module, 'MALLOC_TRIM_PERIOD', 0.0)
+    assert harness.idle()
+    harness.cycle(PICK, PLACE)
+    assert harness.spin_until(lambda: len(trims) == 2), 'the period has passed'
+
+
 def test_the_cycle_starts_at_the_joint_states_while_they_are_fresh(make_harness):
     harness = make_harness({'joint_state_timeout': 1.0})
     start = np.array([0.02, -0.03, -0.78])
