@@ -23,9 +23,6 @@ from dataclasses import dataclass
 import struct
 
 from builtin_interfaces.msg import Duration
-from diagnostic_msgs.msg import DiagnosticArray
-from diagnostic_msgs.msg import DiagnosticStatus
-from diagnostic_msgs.msg import KeyValue
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from geometry_msgs.msg import Point
 import numpy as np
@@ -293,45 +290,11 @@ def joint_trajectory_data(message):
         accelerations=[point.accelerations for point in points])
 
 
-def key_values(values):
-    """
-    Convert a flat mapping (metrics) to diagnostic_msgs/KeyValue, in the mapping's order.
-
-    Floats are written with 9 significant digits, everything else with ``str``.
-    """
-    return [KeyValue(key=str(key), value=_format_value(value)) for key, value in values.items()]
-
-
 def _format_value(value):
     """Format one diagnostics value."""
     if isinstance(value, (float, np.floating)):
         return f'{float(value):.9g}'
     return str(value)
-
-
-def diagnostic_status(name, hardware_id, level, message, values):
-    """
-    Build one diagnostic_msgs/DiagnosticStatus.
-
-    Parameters
-    ----------
-    name, hardware_id : str
-        Status name and hardware id.
-    level : bytes
-        ``DiagnosticStatus.OK``, ``WARN`` or ``ERROR``.
-    message : str
-        Summary: the reason of a rejection, or ``'planned'``.
-    values : Mapping[str, object]
-        Key/value details (see :func:`key_values`).
-
-    """
-    return DiagnosticStatus(level=level, name=name, message=message,
-                            hardware_id=hardware_id, values=key_values(values))
-
-
-def diagnostic_array(stamp, statuses):
-    """Build a diagnostic_msgs/DiagnosticArray of ``statuses`` stamped ``stamp`` (Time)."""
-    return DiagnosticArray(header=Header(stamp=stamp), status=list(statuses))
 
 
 def number_ranges(numbers):
@@ -361,12 +324,16 @@ def numbers_in_ranges(text):
 
 def serialized_diagnostic_array(stamp, statuses):
     """
-    Serialize ``diagnostic_array(stamp, [diagnostic_status(*status) ...])`` for ``publish()``.
+    Serialize a diagnostic_msgs/DiagnosticArray stamped ``stamp`` for ``publish()``.
 
-    ``statuses``: (name, hardware_id, level, message, values) each, the arguments of
-    :func:`diagnostic_status`. Written as rclpy serializes it (CDR, little-endian): rclpy
-    publishes bytes as they are. Publishing the message object instead leaked memory in the
-    node inside rclpy's conversion of it (docs/reliability.md, "The node over time").
+    ``statuses``: (name, hardware_id, level, message, values) each: a DiagnosticStatus with
+    ``level`` (``DiagnosticStatus.OK``, ``WARN`` or ``ERROR``), the summary ``message`` (the
+    reason of a rejection, or ``'planned'``), and one KeyValue per item of the mapping
+    ``values``, in its order (floats with 9 significant digits, everything else with
+    ``str``). Written as rclpy serializes it (CDR, little-endian): rclpy publishes bytes as
+    they are (test/test_serialized_diagnostics.py compares them with rclpy's serialization of
+    the message). Publishing the message object instead leaked memory in the node inside
+    rclpy's conversion of it (docs/reliability.md, "The node over time").
     """
     writer = _CdrWriter()
     writer.raw(_CDR_STAMP.pack(stamp.sec, stamp.nanosec), 4)

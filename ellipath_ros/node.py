@@ -74,6 +74,7 @@ configuration stays in force.
 import collections
 import ctypes
 import dataclasses
+import gc
 import math
 import os
 import signal
@@ -208,15 +209,30 @@ SWITCH_INTERVAL = 0.0005
 # (mallopt(3)), so that NumPy's large temporaries come from the arenas instead of being mapped
 # and unmapped. Under continuous pairs the node's resident memory kept rising (60 KiB a minute
 # after 8 minutes) while the memory in use (mallinfo2) did not: it was memory freed and kept.
-# Two arenas and a fixed threshold (which also fixes glibc's trim threshold) keep it flat; a
-# threshold of 64 KiB cost 14 ms of system time per plan (mmap and page faults), 256 KiB none.
+# Two arenas and fixed thresholds keep it flat. The thresholds also set what a plan pays in
+# page faults: a block above the mmap threshold is mapped and its pages faulted in at each
+# use, and free memory above the trim threshold (128 KiB unless set) at an arena's top is
+# given back after each free, to be faulted in again by the next plan. At 256 KiB and 128
+# KiB a default plan took 200-800 minor faults and up to 8 ms of system time (64 KiB: 14
+# ms); at 2 MiB and 8 MiB none at the median, 3 at p90 (NumPy's largest temporaries of a
+# default plan stay below 2 MiB), with 7 MiB kept free after a plan instead of 2.5.
 MALLOC_ARENA_MAX = 2
-MALLOC_MMAP_THRESHOLD = 256 * 1024  # bytes
+MALLOC_MMAP_THRESHOLD = 2 * 1024 * 1024  # bytes
+MALLOC_TRIM_THRESHOLD = 8 * 1024 * 1024  # bytes
 # mallopt() parameters (glibc's malloc.h).
+_M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
 _M_ARENA_MAX = -8
 # Environment variables with which the caller sets glibc's malloc policy: theirs prevails.
-MALLOC_ENVIRONMENT = ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'GLIBC_TUNABLES')
+MALLOC_ENVIRONMENT = ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'MALLOC_TRIM_THRESHOLD_',
+                      'GLIBC_TUNABLES')
+# The planning thread gives glibc's free pages back (release_free_memory) after a plan at
+# most once per this period [s], not after every plan: the plan after a trim faults in again
+# every page it uses (about 800 minor faults, 4 ms of system time and as much user time,
+# a third of a default plan's CPU), and the node planned each pair after idle time 35 ms
+# against 21 in a loop. Once a minute still bounds what the arenas keep (the creep that the
+# trim stopped was about 90 KiB a minute, docs/reliability.md).
+MALLOC_TRIM_PERIOD = 60.0
 # A belt pick starts at a time planned in advance (the intercept depends on it): at least this
 # many times the median duration of the last BELT_PLAN_TIMES belt plans (missed ones
 # included) after the plan starts (while idle), never less than BELT_LEAD_MIN, and
@@ -285,6 +301,8 @@ class EllipathNode(Node):
         # (clock time, node-clock Time) at which the last 'ahead' trajectory ends.
         self._ahead_end = (None, None)
         self._status_name = f'{self.get_name()}: plan'
+        # The statuses' hardware_id; read once, as rclpy builds it anew at each call.
+        self._hardware_id = self.get_fully_qualified_name()
         # (time.monotonic() of the last intake rejection logged, rejections not logged since)
         self._rejection_log = (None, 0)
         # Intake statuses not yet published (see STATUS_PERIOD), touched only by the intake
@@ -335,6 +353,8 @@ class EllipathNode(Node):
             DiagnosticArray, '/diagnostics', DIAGNOSTICS_DEPTH)
         self._marker_publisher = self.create_publisher(MarkerArray, '~/path_markers', depth)
 
+        # When the planning thread last gave glibc's free pages back (see MALLOC_TRIM_PERIOD).
+        self._trimmed = -math.inf
         # Daemon threads: a plan still running after SHUTDOWN_WAIT cannot keep the process.
         self._workers = [threading.Thread(target=loop, name=f'{NODE_NAME}{loop.__name__}',
                                           daemon=True)
@@ -531,10 +551,6 @@ class EllipathNode(Node):
         settings = self._settings  # one consistent snapshot for the whole message
         try:
             handler(message, settings)
-        except QueueFullError as error:
-            self._log_rejection(f'{topic} rejected: {error}')
-            numbers, _ = self._queue_full.setdefault(topic, ([], str(error)))
-            numbers.append(error.pair)
         except EllipathError as error:
             self._log_rejection(f'{topic} rejected: {error}')
             values = {'topic': topic, 'kind': error.kind}
@@ -557,7 +573,7 @@ class EllipathNode(Node):
     def _intake_status(self, level, message, values):
         """Keep an intake status, with the ledger as it is now, for publish_intake_statuses."""
         self._intake_statuses.append((
-            self._status_name, self.get_fully_qualified_name(), level, message,
+            self._status_name, self._hardware_id, level, message,
             {**values, **self._queue_values()}))
 
     def publish_intake_statuses(self, final=False):
@@ -589,7 +605,7 @@ class EllipathNode(Node):
                 reason = (f'{len(numbers)} pairs rejected as {QueueFullError.kind} (pairs '
                           f'{values["pairs"]}), each in turn; the first: {reason}')
             statuses.append((
-                self._status_name, self.get_fully_qualified_name(), DiagnosticStatus.WARN,
+                self._status_name, self._hardware_id, DiagnosticStatus.WARN,
                 reason, {**values, **self._queue_values()}))
         self._queue_full = {}
         if statuses and (final or not self._sequencer.stopped):
@@ -640,8 +656,7 @@ class EllipathNode(Node):
         if held is not None:
             # Its place was read first and waited for it: the pair is the place's.
             place, latch_time = held
-            self._intake('place_pose', lambda *_: self._sequencer.submit(
-                position, place, 'place_pose', latch_time), message)
+            self._submit(position, place, 'place_pose', latch_time)
 
     def _take_place(self, message, settings):
         """Pair a place pose with its pick and queue the pair (or hold it for its pick)."""
@@ -655,7 +670,16 @@ class EllipathNode(Node):
         if pick is None:
             self._pairing.hold_place(key, (place, latch_time), time.monotonic(), PLACE_WAIT)
             return
-        self._sequencer.submit(pick, place, 'place_pose', latch_time)
+        self._submit(pick, place, 'place_pose', latch_time)
+
+    def _submit(self, pick, place, topic, latch_time):
+        """Queue a pair of ``topic``; a full queue's rejection goes into the next status."""
+        try:
+            self._sequencer.submit(pick, place, topic, latch_time)
+        except QueueFullError as error:
+            self._log_rejection(f'{topic} rejected: {error}')
+            numbers, _ = self._queue_full.setdefault(topic, ([], str(error)))
+            numbers.append(error.pair)
 
     def _expire_places(self):
         """Reject, each with a status, the places whose pick did not come in PLACE_WAIT."""
@@ -672,7 +696,7 @@ class EllipathNode(Node):
                 f'{len(positions)}')
         pick = self._checked_pick('pick_place.poses[0].position', positions[0], settings)
         place = self._checked_point('pick_place.poses[1].position', positions[1], settings)
-        self._sequencer.submit(pick, place, 'pick_place', self._latch_time(message.header.stamp))
+        self._submit(pick, place, 'pick_place', self._latch_time(message.header.stamp))
 
     def _on_clear_queue(self, request, response):
         """Drop every pair waiting or held; the running trajectory goes on."""
@@ -703,8 +727,10 @@ class EllipathNode(Node):
             if taken is not None:
                 self._plan_queued(*taken)
                 # After its statuses: the motion is already on its way (see
-                # release_free_memory).
-                release_free_memory()
+                # release_free_memory and MALLOC_TRIM_PERIOD).
+                if time.monotonic() - self._trimmed >= MALLOC_TRIM_PERIOD:
+                    release_free_memory()
+                    self._trimmed = time.monotonic()
 
     def _requeue_stale_belt_picks(self, velocity, settings):
         """
@@ -754,27 +780,32 @@ class EllipathNode(Node):
             self._sequencer.plan_failed('internal')
             self._report_internal(request.topic, error, pair=request.number)
             return
-        planned = time.monotonic()
-        # Held first, so that an idle robot gets it without waiting for this status; its
-        # 'released' status waits for this one (see _release), so that it cannot come first.
-        reported = threading.Event()
-        motion.details['planned_reported'] = reported
+        values = dict(motion.details['metrics'])
+        # plan_time: the whole plan, the message and its check included (as in 'released').
+        values.update(topic=request.topic, pair=request.number, start_source=start_source,
+                      plan_time=motion.plan_time,
+                      receive_to_plan_latency=time.monotonic() - request.received)
+
+        def report_planned():
+            # Refers to the values, not to the motion, which holds this function: no cycle
+            # keeps the plan's arrays for the garbage collector.
+            self._publish_status(DiagnosticStatus.OK, 'planned',
+                                 {**values, **self._queue_values()})
+
+        # Reported once, by whichever thread comes first: this one, or the release of the
+        # motion, whose 'released' status must not come before it.
+        motion.details['report_planned'] = _Once(report_planned)
         try:
             # None if cleared while planned: the clear_queue status names it.
-            self._sequencer.plan_finished(motion)
-            # Let the release thread, just woken, take the GIL now, rather than after a switch
-            # interval of this thread's status work: an idle robot gets the motion sooner.
-            time.sleep(0.0)
-            values = dict(motion.details['metrics'])
-            # plan_time: the whole plan, the message and its check included (as in
-            # 'released').
-            values.update(topic=request.topic, pair=request.number, start_source=start_source,
-                          plan_time=motion.plan_time,
-                          receive_to_plan_latency=planned - request.received)
-            values.update(self._queue_values())
-            self._publish_status(DiagnosticStatus.OK, 'planned', values)
+            if self._sequencer.plan_finished(motion) is not None:
+                # A motion due at once (the robot idle) is released by this thread: waking the
+                # release thread for it cost a hand-over of the GIL and of a core, 1.6 ms at
+                # the median and 12 ms at p90 on the loaded machine.
+                due = self._sequencer.take_for_release(handover_rest=_handover_rest(settings))
+                if due is not None:
+                    self._release(due)
         finally:
-            reported.set()
+            motion.details['report_planned']()
 
     def _plan(self, request, start, start_source, settings, belt_start=None):
         """
@@ -870,9 +901,7 @@ class EllipathNode(Node):
         while not self._sequencer.stopped:
             settings = self._settings
             motion = self._sequencer.wait_for_release(
-                WORKER_POLL, spin=RELEASE_SPIN,
-                handover_rest=(settings.release_lead if settings.header_stamp == 'ahead'
-                               else None))
+                WORKER_POLL, spin=RELEASE_SPIN, handover_rest=_handover_rest(settings))
             if motion is not None:
                 self._release(motion)
 
@@ -880,7 +909,7 @@ class EllipathNode(Node):
         """Check where the robot is, re-plan if needed, publish and report a held motion."""
         settings = self._settings
         request = motion.request
-        planned_reported = motion.details.get('planned_reported')
+        report_planned = motion.details.get('report_planned')
         try:
             motion, check = self._checked_start(motion, settings)
         except EllipathError as error:
@@ -938,8 +967,8 @@ class EllipathNode(Node):
                                                settings.controller_period,
                                                settings.release_lead)
         self._last_end_position = motion.end_position
-        if planned_reported is not None:
-            planned_reported.wait(SHUTDOWN_WAIT)
+        if report_planned is not None:
+            report_planned()
         self._publish_status(DiagnosticStatus.OK, 'released',
                              self._release_values(release, check))
         if self._marker_publisher.get_subscription_count() > 0:
@@ -1119,9 +1148,8 @@ class EllipathNode(Node):
         # Serialized here: rclpy's conversion of the message object leaked (see
         # serialized_diagnostic_array).
         self._diagnostics_publisher.publish(serialized_diagnostic_array(
-            self.get_clock().now().to_msg(), [(self._status_name,
-                                               self.get_fully_qualified_name(), level,
-                                               message, values)]))
+            self.get_clock().now().to_msg(),
+            [(self._status_name, self._hardware_id, level, message, values)]))
 
 
 def _delayed_belt_start(motion, delay, frame_id):
@@ -1150,6 +1178,26 @@ def _delayed_belt_start(motion, delay, frame_id):
     return dataclasses.replace(motion, trajectory=message.trajectory, details={
         **motion.details, 'message': message, 'metrics': metrics,
         'belt_start': motion.details['belt_start'] + delay})
+
+
+class _Once:
+    """Call ``function`` on the first call only; a concurrent call returns once it is done."""
+
+    def __init__(self, function):
+        self._function = function
+        self._lock = threading.Lock()
+        self._done = False
+
+    def __call__(self):
+        with self._lock:
+            if not self._done:
+                self._done = True
+                self._function()
+
+
+def _handover_rest(settings):
+    """Return the ``handover_rest`` of the release (see Sequencer.due): ``ahead`` stamps only."""
+    return settings.release_lead if settings.header_stamp == 'ahead' else None
 
 
 def _take(subscription):
@@ -1182,7 +1230,7 @@ def _stamp_key(stamp):
 
 def set_malloc_policy(environment=os.environ):
     """
-    Limit glibc's malloc arenas and fix its mmap threshold; return True if set.
+    Limit glibc's malloc arenas and fix its mmap and trim thresholds; return True if set.
 
     Nothing is changed off glibc (no ``mallopt``, or not glibc's) or when the caller chose a
     policy in ``environment`` (see MALLOC_ENVIRONMENT). Call it before the node's threads
@@ -1198,17 +1246,19 @@ def set_malloc_policy(environment=os.environ):
         return False  # not glibc: its allocator has no such arenas
     mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
     return bool(mallopt(_M_ARENA_MAX, MALLOC_ARENA_MAX)
-                and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD))
+                and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD)
+                and mallopt(_M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD))
 
 
 def release_free_memory():
     """
     Give the free pages of glibc's arenas back to the system (malloc_trim(0)); off glibc, none.
 
-    Called after each plan: the arenas otherwise keep what a plan freed behind blocks still in
-    use, and the node's resident memory crept up by about 50 KiB a minute at 1 pair/s; at 3
-    pairs/s the memory kept rose by 1.9 MiB in 6 minutes while the memory in use did not
-    (docs/reliability.md, "The node over time"). About 0.4 ms of CPU.
+    Called after a plan, at most once per MALLOC_TRIM_PERIOD: the arenas otherwise keep what
+    a plan freed behind blocks still in use, and the node's resident memory crept up by about
+    50 KiB a minute at 1 pair/s; at 3 pairs/s the memory kept rose by 1.9 MiB in 6 minutes
+    while the memory in use did not (docs/reliability.md, "The node over time"). About 0.4 ms
+    of CPU, and the next plan faults in again the pages given back.
     """
     if _MALLOC_TRIM is not None:
         _MALLOC_TRIM(0)
@@ -1227,6 +1277,22 @@ def _glibc_malloc_trim():
 
 
 _MALLOC_TRIM = _glibc_malloc_trim()
+
+
+def freeze_start_up_objects():
+    """
+    Collect once, then keep what start-up made out of the garbage collector's full passes.
+
+    The imports (numba's compiler, rclpy, NumPy) and the warm-up leave about 130,000 objects
+    that the collector tracks and that live as long as the process. A full (generation 2)
+    collection goes through every one of them: 290-320 ms in the node's start-up on the loaded
+    machine, and in the bench's process the largest request time of each run (318 ms, where
+    its other requests took 129 ms at most). The node makes few long-lived objects after
+    start-up, so such a collection comes seldom, but when it comes it stops every thread.
+    ``gc.freeze`` moves them to the permanent generation, which no collection visits.
+    """
+    gc.collect()
+    gc.freeze()
 
 
 def _watch_signals(stop, finished, on_stop):
@@ -1305,6 +1371,7 @@ def main(args=None):
     exit_code = 0
     try:
         node = EllipathNode()
+        freeze_start_up_objects()
         executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)

@@ -34,7 +34,6 @@ from ellipath_ros import node as node_module
 from ellipath_ros.conversions import duration_from_seconds
 from ellipath_ros.conversions import joint_positions_by_name
 from ellipath_ros.conversions import joint_trajectory_data
-from ellipath_ros.conversions import key_values
 from ellipath_ros.conversions import number_ranges
 from ellipath_ros.conversions import numbers_in_ranges
 from ellipath_ros.conversions import seconds_from_duration
@@ -109,12 +108,6 @@ def test_joint_positions_are_picked_by_name():
                                    JOINT_NAMES) is None
     assert joint_positions_by_name(JointState(name=JOINT_NAMES, position=[0.1, math.nan, 0.0]),
                                    JOINT_NAMES) is None
-
-
-def test_key_values_format_numbers_and_text():
-    values = key_values({'duration': 0.123456789012, 'count': 80, 'policy': 'paper'})
-    assert [(item.key, item.value) for item in values] == [
-        ('duration', '0.123456789'), ('count', '80'), ('policy', 'paper')]
 
 
 def test_pair_numbers_are_written_as_ranges_and_read_back():
@@ -393,6 +386,24 @@ def test_the_next_cycle_starts_where_the_last_one_ended(make_harness):
     np.testing.assert_allclose(tcp_positions(trajectory)[0], PLACE, atol=1e-9)
     stamp = trajectory.header.stamp.sec * 10**9 + trajectory.header.stamp.nanosec
     assert stamp > before, 'header_stamp ahead: publication + release_lead'
+
+
+def test_free_memory_is_given_back_after_a_plan_at_most_once_per_trim_period(
+        make_harness, monkeypatch):
+    trims = []
+    monkeypatch.setattr(node_module, 'release_free_memory',
+                        lambda: trims.append(time.monotonic()))
+    harness = make_harness()
+    harness.cycle(PICK, PLACE)
+    assert harness.spin_until(lambda: len(trims) == 1), 'after the first plan'
+    assert harness.idle()
+    harness.cycle(OTHER_PICK, PICK)
+    harness.spin_for(SETTLE)
+    assert len(trims) == 1, 'the second plan came within MALLOC_TRIM_PERIOD of the first'
+    monkeypatch.setattr(node_module, 'MALLOC_TRIM_PERIOD', 0.0)
+    assert harness.idle()
+    harness.cycle(PICK, PLACE)
+    assert harness.spin_until(lambda: len(trims) == 2), 'the period has passed'
 
 
 def test_the_cycle_starts_at_the_joint_states_while_they_are_fresh(make_harness):

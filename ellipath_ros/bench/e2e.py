@@ -34,8 +34,10 @@ and is not counted.
 Beside each time, the node's own ``plan_time`` of that pair (its ``released`` status: the
 plan, the message and its check, in the node) gives the time spent outside the planner:
 intake, the hand-overs between the node's threads, DDS both ways and this client's callback.
-The planner itself runs slower in the node than in a tight loop here (the robot's idle time
-between pairs leaves caches and clocks cold), which the difference keeps apart.
+The planner may run slower in the node than in a tight loop here, which the difference keeps
+apart: after the robot's idle time between pairs the caches are cold (in one process, a plan
+after such a pause took about 10 % more CPU time), and until this round every plan in the
+node also faulted in hundreds of fresh pages (see the node's MALLOC_TRIM_PERIOD).
 """
 
 import os
