@@ -34,8 +34,10 @@ Python, ``NUMBA_DISABLE_JIT=1``, set by the script itself). Limits as in
 to the scan. Each optimum takes a few CPU minutes.
 
     PYTHONPATH=. python3 scripts/shape_optimum_study.py [n:p1:p2 ...] [--tolerance METRES]
+                                                        [--cycle INDEX]
 
-Without shapes it runs ``SHAPES``; ``--tolerance`` sets ``join_tolerance`` (default 0.5 mm).
+Without shapes it runs ``SHAPES``; ``--tolerance`` sets ``join_tolerance`` (default 0.5 mm),
+``--cycle`` one of the bench's cycles (0 the paper's example, 1 25-305-25 mm; both by default).
 """
 
 import math
@@ -104,11 +106,11 @@ def distance_to_paper(path, at_t1):
     return float(np.minimum(to_ellipse, to_line).max())
 
 
-def shape_row(shape, tolerance, log=print):
-    """Print the spans, distances, scan and optimum ratios of one shape on both cycles."""
+def shape_row(shape, tolerance, cases=CYCLES, log=print):
+    """Print the spans, distances, scan and optimum ratios of one shape on ``cases``."""
     limits, plan_limits = optimum_study.study_limits(False)
     with join_study.shape_of(*shape):
-        for case in CYCLES:
+        for case in cases:
             path = optimum_study.cycle_path(case, 'g2', tolerance)
             bounds = optimum_study.regions(path)
             distances = [distance_to_paper(path, at_t1) for at_t1 in (True, False)]
@@ -141,17 +143,20 @@ def main(argv):
         # Start again with plain-Python kernels, before any is compiled (join_study.py).
         os.execve(sys.executable, [sys.executable, *sys.argv],
                   {**os.environ, 'NUMBA_DISABLE_JIT': '1'})
-    tolerance = DEFAULT_JOIN_TOLERANCE
-    if '--tolerance' in argv:
-        index = argv.index('--tolerance')
-        tolerance = float(argv[index + 1])
-        argv = argv[:index] + argv[index + 2:]
+    options = {'--tolerance': DEFAULT_JOIN_TOLERANCE, '--cycle': None}
+    for name in options:
+        if name in argv:
+            index = argv.index(name)
+            options[name] = float(argv[index + 1])
+            argv = argv[:index] + argv[index + 2:]
+    tolerance = options['--tolerance']
+    cases = CYCLES if options['--cycle'] is None else [CYCLES[int(options['--cycle'])]]
     shapes = [parse_shape(text) for text in argv] or list(SHAPES)
     print(f'join_tolerance {1e3 * tolerance:g} mm; shape | cycle | spans at T1 / T2 | largest '
           'distance from the paper path | scan ratio | optimum ratio (planned, to the bound)',
           flush=True)
     for shape in shapes:
-        shape_row(shape, tolerance)
+        shape_row(shape, tolerance, cases)
     return 0
 
 
