@@ -51,7 +51,7 @@ import numpy as np
 import optimum_study
 
 # (n, p1, p2): the best shapes of join_study's scan at 0.5 mm, then longer tails.
-SHAPES = ((6, 1.25, 0.0), (6, 1.0, 0.0), (5, 0.5, 0.0), (7, 1.5, 0.0), (8, 2.0, 0.0),
+SHAPES = ((6, 1.25, 0.0), (6, 1.0, 0.0), (5, 0.5, 0.0), (8, 2.0, 0.0), (7, 1.5, 0.0),
           (10, 3.0, 0.0))
 # Samples per transition for the distance, and of the ellipse's parameter searched around each.
 DISTANCE_SAMPLES = 4001
