@@ -101,21 +101,22 @@ ENTRY_VARIANTS = ((0.0,), (0.0, -0.1), (0.0, -0.15), (0.0, -0.2), (0.0, -0.25), 
 
 
 def family_shape(n, p1, p2):
-    """Return (shape function like geometry._blend_shape, largest |f| on [0, 1])."""
+    """Return (shape function like geometry._blend_shape, largest |f|, largest |f'| on [0, 1])."""
     f = Polynomial([0.0, 0.0, 1.0]) * Polynomial([1.0, -1.0]) ** n * Polynomial([0.5, p1, p2])
     derivatives = [f, f.deriv(1), f.deriv(2), f.deriv(3)]
-    peak = float(np.abs(f(np.linspace(0.0, 1.0, 100001))).max()) * (1.0 + 1e-6)
-    return (lambda u: tuple(d(u) for d in derivatives)), peak
+    u = np.linspace(0.0, 1.0, 100001)
+    peak, slope = (float(np.abs(d(u)).max()) * (1.0 + 1e-6) for d in derivatives[:2])
+    return (lambda u: tuple(d(u) for d in derivatives)), peak, slope
 
 
 @contextlib.contextmanager
 def shape_of(n, p1, p2):
     """Use the shape (n, p1, p2) in the geometry module for the duration of the block."""
-    shape, peak = family_shape(n, p1, p2)
+    shape, peak, slope = family_shape(n, p1, p2)
     # The distance grid caches the shape's samples: it must follow the swap both ways.
     geometry._distance_grid.cache_clear()
     try:
-        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak):
+        with patched(geometry, _blend_shape=shape, _BLEND_PEAK=peak, _BLEND_SLOPE_BOUND=slope):
             yield
     finally:
         geometry._distance_grid.cache_clear()
