@@ -45,7 +45,7 @@ setup(
     entry_points={
         'console_scripts': [
             'ellipath = ellipath_ros.cli:main',
-            'ellipath_node = ellipath_ros.node:main',
+            'ellipath_node = ellipath_ros.node_entry:main',
         ],
     },
 )

@@ -1328,7 +1328,7 @@ def _watch_signals(stop, finished, on_stop):
     threading.Thread(target=watch, name='signal_watch', daemon=True).start()
 
 
-def main(args=None):
+def main(args=None, early_signals=()):
     """
     Run ``ellipath_node`` until SIGINT or SIGTERM, then end the process with its exit code.
 
@@ -1343,6 +1343,10 @@ def main(args=None):
     ----------
     args : list of str, optional
         Command-line arguments (``--ros-args ...``); ``sys.argv`` if None.
+    early_signals : list of int, optional
+        Signals taken before this module was imported (``node_entry``, the
+        ``ellipath_node`` command): its handlers record them until those of
+        this function are installed, then any of them stops the node at once.
 
     """
     # Before rclpy starts the DDS threads and the node its own (see MALLOC_ARENA_MAX).
@@ -1364,15 +1368,21 @@ def main(args=None):
     finished = threading.Event()
     node = None
     _watch_signals(stop, finished, lambda: node is not None and node.request_stop())
+    if early_signals:
+        # Read after this function's handlers replaced node_entry's: none is missed.
+        get_logger(NODE_NAME).info(
+            f'{signal.Signals(early_signals[0]).name} during start-up: not starting')
+        stop.set()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     # Multi-threaded so that intake, joint states and the services are served concurrently
     # (see EXECUTOR_THREADS); planning and release have threads of their own.
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
     exit_code = 0
     try:
-        node = EllipathNode()
-        freeze_start_up_objects()
-        executor.add_node(node)
+        if not stop.is_set():  # else a signal came during start-up: no node
+            node = EllipathNode()
+            freeze_start_up_objects()
+            executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
     except ExternalShutdownException:

@@ -297,3 +297,43 @@ def test_a_signal_is_seen_whichever_thread_takes_it_and_a_stuck_shutdown_still_e
         # Ended by the watch thread 0.5 s after the signal, before the 5 s wait was over.
         assert 'not ended' not in result.stdout
         assert 'shutdown not finished 0.5 s after the signal: exiting now' in result.stderr
+
+
+def _catches(pid, sig):
+    """Return True when process ``pid`` has a handler of its own for ``sig`` (/proc)."""
+    with open(f'/proc/{pid}/status') as status:
+        for line in status:
+            if line.startswith('SigCgt:'):
+                return bool(int(line.split()[1], 16) >> (sig - 1) & 1)
+    return False
+
+
+@pytest.mark.timeout(START_TIMEOUT + 30.0)
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=lambda sig: sig.name)
+def test_one_signal_during_the_imports_stops_the_node_even_with_sigint_inherited_ignored(
+        ros_env, sig):
+    # The ellipath_node command's code (node_entry.main), started as `ellipath_node &` in a
+    # script starts it: SIGINT ignored. The signal is sent as soon as the process catches
+    # it, i.e. while the node's imports run (a second or more), before node.main exists.
+    env = dict(ros_env)
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [PACKAGE_ROOT, env.get('PYTHONPATH')]))
+    process = subprocess.Popen(
+        [sys.executable, '-c', 'import sys; from ellipath_ros.node_entry import main; '
+         'sys.exit(main())', '--ros-args', '-r', f'__ns:=/ellipath_early_{os.getpid()}'],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    try:
+        deadline = time.monotonic() + START_TIMEOUT
+        while not _catches(process.pid, sig):
+            assert process.poll() is None and time.monotonic() < deadline, 'never caught'
+            time.sleep(0.005)
+        process.send_signal(sig)
+        log, _ = process.communicate(timeout=START_TIMEOUT)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 0, log
+    assert 'Traceback' not in log, log
+    assert f'{sig.name} during start-up: not starting' in log, log
+    assert 'ready:' not in log, log
