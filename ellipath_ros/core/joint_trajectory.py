@@ -1262,17 +1262,10 @@ def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0, t
         raise InvalidInputError(f'table: expected shape ({segments}, {len(EXECUTED_KEYS)}) '
                                 f'(one row per segment), got shape {np.shape(table)}')
     table = np.ascontiguousarray(table, dtype=float)
-    found = np.empty(3)
+    found = np.empty(2)
     quantity, joint = _joint_limit_rows(times, traj.positions, traj.velocities,
                                         traj.accelerations, extra, table, low, high, vmax,
                                         amax, found)
-    if quantity < 0 and found[2] >= 0:
-        # An extreme between the walk's samples: named where it is.
-        segment = int(found[2])
-        quantity = 1 if table[segment, 3] > vmax else 2
-        c = np.ascontiguousarray(segment_polynomials(traj)[segment])
-        value, offset, joint = _joint_peak(c, times[segment + 1] - times[segment], quantity)
-        found[0], found[1] = times[segment] + offset, value
     if quantity < 0:
         return
     name = traj.joint_names[joint]
@@ -1301,14 +1294,13 @@ def _joint_limit_rows(times, positions, velocities, accelerations, extra, table,
     ``extra`` interior points, evenly spaced, then the last point; else the points. With a
     ``table`` (K - 1, 5) (none: 0 rows) only the segments it lets break a limit are
     walked; one whose speed or acceleration extreme breaks a limit between the samples
-    stops the walk, its index in ``found[2]`` (else -1). Quantity 0 is the position, 1 the
+    is named at that extreme (:func:`_joint_peak`). Quantity 0 is the position, 1 the
     velocity, 2 the acceleration, -1 none; ``found`` receives its time and value.
     """
     c = np.empty((6, 3))
     state = np.empty((3, 3))
     count = times.size
     interpolated = extra > 0 and count > 1
-    found[2] = -1.0
     for segment in range(count - 1 if interpolated else 0):
         exceeded = False
         if table.shape[0] > 0:
@@ -1336,9 +1328,11 @@ def _joint_limit_rows(times, positions, velocities, accelerations, extra, table,
                 found[0], found[1] = times[segment] + x, state[quantity, joint]
                 return quantity, joint
         if exceeded:
-            # Its extreme lies between the samples: the first offence, named by the caller.
-            found[2] = segment
-            return -1, 0
+            # Its extreme lies between the samples: the first offence, named where it is.
+            quantity = 1 if table[segment, 3] > vmax else 2
+            value, offset, joint = _joint_peak(c, length, quantity)
+            found[0], found[1] = times[segment] + offset, value
+            return quantity, joint
     for point in range(count - 1 if interpolated else 0, count):
         for j in range(3):
             state[0, j], state[1, j] = positions[point, j], velocities[point, j]
