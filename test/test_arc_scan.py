@@ -12,24 +12,53 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The path-space scan: its shortcuts and its compiled kernels give what plain code gives."""
+"""
+The path-space scans and their join.
+
+The scan's shortcuts and its compiled kernels give what plain code gives; legs whose join
+once failed are joined.
+"""
 
 import math
 
+from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import arc_scan, optimal_profile
 from ellipath_ros.core.arc_scan import _advance, _ADVANCED, _READ, _Scan
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.planner import _check_reach_and_speed_cap, PlannerConfig
 import numpy as np
 import pytest
 
-# Paths whose legs the equivalence tests plan: the paper's example with each join, a bend
-# with a speed valley, and a low, wide one under a speed cap.
+
+def _bench_approach(request, join):
+    """
+    Return (path, speed cap) of the approach leg of the bench's request ``request``.
+
+    The bench's seeded pairs, its request starting at the previous one's place (the caller
+    picks a request whose previous one the bench plans), default settings but ``join``.
+    """
+    pairs = random_pairs(request + 1)
+    config = PlannerConfig.from_flat({'join': join})
+    path = plan_path(pairs[request - 1][1], pairs[request][0], config.place_clearance,
+                     config.pick_clearance, config.arc, config.join, config.join_tolerance)
+    return path, _check_reach_and_speed_cap(path, config)
+
+
+# Bench legs whose join failed at the scans' crossing (the Ruckig fallback served them, at
+# 0.786 s and 0.972 s): the join found from scan states before the crossing, or with the
+# other jerk sign.
+BENCH_LEGS = ((373, 'g2'), (290, 'paper'))
+# Legs (path, speed cap) the equivalence tests plan: the paper's example with each join, a
+# bend with a speed valley, a low, wide one under a speed cap, and a bench leg of
+# BENCH_LEGS.
 PATHS = (
-    lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75]),
-    lambda: plan_path([0, 0, -0.8], [0.3, 0, -0.75], join='paper'),
-    lambda: plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78]),
-    lambda: plan_path([-0.2, 0.1, -0.85], [0.2, -0.1, -0.85]),
+    lambda: (plan_path([0, 0, -0.8], [0.3, 0, -0.75]), None),
+    lambda: (plan_path([0, 0, -0.8], [0.3, 0, -0.75], join='paper'), None),
+    lambda: (plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78]), None),
+    lambda: (plan_path([-0.2, 0.1, -0.85], [0.2, -0.1, -0.85]),
+             lambda s: np.full(np.shape(s), 1.5)),
+    lambda: _bench_approach(*BENCH_LEGS[0]),
 )
 
 
@@ -86,7 +115,7 @@ def _forward_scan(path, forget_readings):
 def test_a_step_starts_from_the_reading_the_table_gives():
     # Each step hands its end state's table reading to the next: the same states result as
     # when every step reads the table afresh.
-    for path in (PATHS[0](), PATHS[2]()):
+    for path in (PATHS[0]()[0], PATHS[2]()[0]):
         carried, fresh = _forward_scan(path, False), _forward_scan(path, True)
         assert carried.count > 100
         for name in ('t', 's', 'v', 'a', 'j'):
@@ -114,9 +143,8 @@ def test_compiled_kernels_plan_what_their_plain_python_plans_bit_for_bit(
     # of the scan's modules swapped for its py_func, so the kernels calling kernels run plain
     # too. Catches an operation numba compiles differently from Python (x**2 as x*x, min/max
     # with NaN, integer division) and any future numba that does.
-    path = make_path()
+    path, cap = make_path()
     limits = CartesianLimits()
-    cap = (lambda s: np.full(np.shape(s), 1.5)) if make_path is PATHS[3] else None
     compiled = optimal_profile._optimal_motion(path, limits, cap)
     kernels = {**_kernels(arc_scan), **_kernels(optimal_profile)}
     assert {'_step', '_advance', '_scan_both', '_crossing', '_piece_check'} <= set(kernels)
@@ -141,7 +169,7 @@ def test_compiled_kernels_plan_what_their_plain_python_plans_bit_for_bit(
 def test_piece_check_is_its_plain_form_at_numpys_linspace_points():
     # The piece check (compiled and plain alike) evaluates the 9 points that
     # numpy.linspace(0, duration, 9) gives, computed as NumPy computes them.
-    planner = optimal_profile._ArcPlanner(PATHS[0](), CartesianLimits(), None)
+    planner = optimal_profile._ArcPlanner(PATHS[0]()[0], CartesianLimits(), None)
     table, constants = planner.forward.table, planner.forward.constants
     for duration in (0.0, 1e-3, 3e-3, 7.1e-3, math.pi * 1e-3):
         for jerk in (-900.0, 400.0):
@@ -153,3 +181,39 @@ def test_piece_check_is_its_plain_form_at_numpys_linspace_points():
             points = np.linspace(0.0, duration, 9)
             assert points.tolist() == [
                 duration if point == 8 else point * (duration / 8) + 0.0 for point in range(9)]
+
+
+def _least_time(length, limits):
+    """
+    Return the least time [s] of any rest-to-rest motion over ``length`` [m] within limits.
+
+    Within the speed and acceleration limits alone (s'' is a component of the acceleration
+    vector): full acceleration, cruise at the speed limit if there is room, full braking.
+    """
+    speed, accel = limits.max_speed, limits.max_accel
+    if length >= speed * speed / accel:
+        return length / speed + speed / accel
+    return 2.0 * math.sqrt(length / accel)
+
+
+@pytest.mark.parametrize('request_index, join', BENCH_LEGS)
+def test_a_bench_leg_whose_join_failed_at_the_crossing_is_timed_by_the_scans(
+        request_index, join, monkeypatch):
+    # Both scans held the speed limit where they crossed, their s'' chattering: the join
+    # solved from the crossing found only pieces of negative duration, lower end speeds did
+    # not move the crossing, and the Ruckig fallback served at 2.8 (g2) and 5.0 (paper)
+    # times the least time of any motion over the path's length within the speed and
+    # acceleration limits. The scans' plan takes under 2 (1.47 and 1.60 when written).
+    path, cap = _bench_approach(request_index, join)
+    limits = PlannerConfig.from_flat({'join': join}).limits
+    fallbacks = []
+    fallback = optimal_profile._ArcPlanner.fallback
+
+    def recorded(planner, *args):
+        fallbacks.append(args)
+        return fallback(planner, *args)
+
+    monkeypatch.setattr(optimal_profile._ArcPlanner, 'fallback', recorded)
+    motion = optimal_profile._optimal_motion(path, limits, cap)
+    assert not fallbacks
+    assert motion.duration < 2.0 * _least_time(path.length, limits)

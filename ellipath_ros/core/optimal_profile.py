@@ -86,6 +86,15 @@ _FALLBACK_PIECES = 24
 # first (most joins need less than 10 ms), the rest only if the join fails with those.
 _JOIN_ROOM_STEPS = 15
 _JOIN_ROOM_MORE = 25
+# A join that fails at the crossing is solved again with the other jerk sign and, where the
+# crossing lies more than _VALLEY_REACH from both ends of the stretch, from up to this many
+# forward scan states before it. Where both scans hold the speed limit, their s'' chatters
+# from step to step (each step levels off anew): which state first tops the other scan is
+# happenstance, and so are the s'' the solve starts from and the jerk sign they suggest; from
+# there Newton may find only pieces of negative duration (bench request 373's approach), and
+# no lower end speed helps (the scans are the same that far from the ends). A crossing near
+# an end is left to the end's retries (a lower end speed), as before.
+_JOIN_EARLIER = 3
 # Bisections towards the edge of the backward scan's reach when the join's bracketing search
 # jumped over it (2 ms / 2**30: below a nanosecond).
 _JOIN_EDGE_STEPS = 30
@@ -637,28 +646,59 @@ def _join(scanner, forward, backward, length):
     equations in x, y and the piece's duration (see :func:`_solve_join`),
     with the largest jerk the piece keeps legal (:func:`_piece_check`).
     Where both scans cruise at the same speed, they are simply switched.
+    The solve starts at the crossing with the jerk sign that brings the
+    forward scan's s'' there to the backward one's, then the other sign;
+    at a crossing inside the stretch (see ``_JOIN_EARLIER``) from up to
+    ``_JOIN_EARLIER`` forward states before it too.
     ``rows``, shape (pieces, 5), as :func:`~ellipath_ros.core.arc_scan._rows`
     gives them (none if not joined); ``scanner`` is the forward one.
+    """
+    forward_states, forward_count = forward[0], forward[1][_COUNT]
+    backward_states, backward_count = backward[0], backward[1][_COUNT]
+    index, cruising = _crossing(forward_states, forward_count, backward_states,
+                                backward_count, length)
+    if index < 0:
+        return False, np.empty((0, 5))
+    s_c = forward_states[1, index]
+    if cruising:
+        y_c = _time_at(backward_states, backward_count, length - s_c)
+        return True, _joined_rows(
+            _rows(forward_states, forward_count, forward_states[0, index]), np.empty((0, 5)),
+            _reversed_rows(backward_states, backward_count, y_c, length))
+    # The stretch's ends: where the scans started.
+    inside = (s_c - forward_states[1, 0] > _VALLEY_REACH
+              and length - backward_states[1, 0] - s_c > _VALLEY_REACH)
+    earliest = max(index - _JOIN_EARLIER, 0) if inside else index
+    for start in range(index, earliest - 1, -1):
+        for preferred in (True, False):
+            joined, rows = _join_from(scanner, forward, backward, length, start, preferred)
+            if joined:
+                return True, rows
+    return False, np.empty((0, 5))
+
+
+@kernel
+def _join_from(scanner, forward, backward, length, index, preferred):
+    """
+    Return (joined, rows) of :func:`_join` solved from the forward scan's state ``index``.
+
+    The jerk starts at 99 % of the end of the legal range at that state
+    that brings the forward scan's s'' to the backward one's at the same
+    place (``preferred``), or of the other end, and comes down to what
+    :func:`_piece_check` finds legal (5 tries).
     """
     table, constants = scanner[0], scanner[1]
     forward_states, forward_count = forward[0], forward[1][_COUNT]
     backward_states, backward_count = backward[0], backward[1][_COUNT]
     none = np.empty((0, 5))
-    index, cruising = _crossing(forward_states, forward_count, backward_states,
-                                backward_count, length)
-    if index < 0:
-        return False, none
     x_c, s_c = forward_states[0, index], forward_states[1, index]
     y_c = _time_at(backward_states, backward_count, length - s_c)
-    if cruising:
-        return True, _joined_rows(_rows(forward_states, forward_count, x_c), none,
-                                  _reversed_rows(backward_states, backward_count, y_c, length))
     a_f = _state(forward_states, forward_count, x_c)[2]
     a_b = -_state(backward_states, backward_count, y_c)[2]
     found, lowest, highest = _jerk_range(table, constants, s_c, forward_states[2, index], a_f)
     if not found:
         return False, none
-    jerk = 0.99 * (lowest if a_b < a_f else highest)
+    jerk = 0.99 * (lowest if (a_b < a_f) == preferred else highest)
     for _ in range(5):
         solved, x, y, duration = _solve_join(
             (forward_states, forward_count, backward_states, backward_count, length, jerk),
