@@ -20,8 +20,9 @@ The requests are those of ``ellipath bench``: its seeded pairs (``random_pairs``
 as it chains them (the first from the node's ``home_position``, each later one from the
 last planned place), planned by ``plan_cycle`` with the node's default settings (``--join``
 overrides the join). Per leg: the duration ``time_motion`` returns (planned), the leg's
-duration as published (after any slow-down for the executed limits) and whether the
-time-optimal profile's Ruckig fallback served it.
+duration as published (after any slow-down for the executed limits), whether the
+time-optimal profile's Ruckig fallback served it, and a digest of its published points (to
+tell legs that changed at all).
 ``--save FILE`` writes them as JSON (e.g. with main's code on PYTHONPATH, as the baseline);
 ``--baseline FILE`` compares this run leg by leg: legs changed, by how much, totals.
 
@@ -29,6 +30,7 @@ time-optimal profile's Ruckig fallback served it.
 """
 
 import argparse
+import hashlib
 import json
 import logging
 import sys
@@ -76,7 +78,7 @@ class LegRecorder:
 
 
 def measure(count, join):
-    """Return {label: (planned duration, published duration, fallback)} per leg."""
+    """Return {label: (planned duration, published duration, fallback, digest)} per leg."""
     values = default_values()
     if join:
         values['join'] = join
@@ -95,9 +97,17 @@ def measure(count, join):
             # plan_cycle times the transfer first, then the approach (listed first).
             names = ('transfer', 'approach')[:len(plan.legs)]
             for name, call, leg in zip(names, recorder.calls, reversed(plan.legs)):
-                figures[f'{index}-{name}'] = (call[0], leg.motion.duration, call[1])
+                figures[f'{index}-{name}'] = (call[0], leg.motion.duration, call[1],
+                                              digest(leg.joint_trajectory))
             start = plan.end_position
     return figures
+
+
+def digest(trajectory):
+    """Return a hex digest of a leg's published points (times, positions, speeds, accels)."""
+    return hashlib.sha1(b''.join(np.ascontiguousarray(array).tobytes() for array in (
+        trajectory.time_from_start, trajectory.positions, trajectory.velocities,
+        trajectory.accelerations))).hexdigest()
 
 
 def report(figures, baseline):
@@ -114,6 +124,8 @@ def report(figures, baseline):
              sum(value[2] for value in baseline.values()),
              ', '.join(sorted(label for label, value in baseline.items() if value[2])),
              len(common))
+    LOG.info('published points changed on %d legs',
+             sum(figures[label][3] != baseline[label][3] for label in common))
     for column, name in ((0, 'planned'), (1, 'published')):
         before = np.array([baseline[label][column] for label in common])
         after = np.array([figures[label][column] for label in common])

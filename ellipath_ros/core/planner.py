@@ -629,7 +629,9 @@ def _joint_points(motion, config, bounds, samples=None):
     planned motion's there by more than ``_QUINTIC_EXCESS`` gets points at the jerk steps
     inside it of at least ``_JERK_STEP_SHARE`` of the limit, or at its middle (the sample
     nearest to it) if it has none, for up to ``_KNOT_ROUNDS`` rounds and while a round
-    lowers an exceeded peak.
+    lowers an exceeded peak. Of the knots and each round, the points whose executed peaks
+    need the least uniform slow-down (:func:`_excess_factor`) are returned: a round may lower
+    one exceeded peak and raise another.
     Samples output is checked, not changed. The table (S, 5) has the peaks of each segment
     in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``)
     are taken when given, else made here.
@@ -646,6 +648,8 @@ def _joint_points(motion, config, bounds, samples=None):
     steps = None
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
+    # The points whose peaks need the least slow-down so far (the first of equals).
+    least = (_excess_factor(worst), trajectory, table)
     for _ in range(_KNOT_ROUNDS):
         times = trajectory.time_from_start
         # Points mend what the quintic adds to the motion, not what the motion itself has.
@@ -675,13 +679,16 @@ def _joint_points(motion, config, bounds, samples=None):
         trajectory = _with_points(trajectory, samples, _spaced(times, added))
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
+        excess = _excess_factor(ratios)
+        if excess < least[0]:
+            least = (excess, trajectory, table)
         # When a round lowers no exceeded peak, only the slow-down that follows can.
         if not (ratios < worst)[worst > 1.0].any():
             break
         worst = ratios
     # The added points only bring the interpolation closer to the motion: the deviation
     # measured on the knots' own check grids still bounds it.
-    return trajectory, error, table
+    return least[1], error, least[2]
 
 
 def _hold(trajectory, seconds):
