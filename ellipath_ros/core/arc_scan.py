@@ -100,9 +100,12 @@ class _NoMotion(Exception):
     """The scans found no motion for a stretch (the caller tries something slower)."""
 
 
-def _arc_table(kappa, kappa_s, cap):
+@kernel
+def _arc_tables(kappa, kappa_s, cap):
     """
-    Return the table (see the module's layouts) of kappa, dkappa/ds and the cell caps.
+    Return the tables (see the module's layouts) of the arc run forwards and backwards.
+
+    Backwards (from T2 to T1) the grid is reversed and dkappa/ds changes sign.
 
     Parameters
     ----------
@@ -112,16 +115,19 @@ def _arc_table(kappa, kappa_s, cap):
         Speed cap [m/s] of each cell.
 
     """
-    table = np.zeros((5, kappa.size))
-    table[0], table[2] = kappa, kappa_s
-    table[1, :-1], table[3, :-1], table[4, :-1] = np.diff(kappa), np.diff(kappa_s), cap
-    return table
-
-
-def _backwards(table):
-    """Return the table of the arc run from T2 to T1 (dkappa/ds changes sign)."""
-    kappa, kappa_s, cap = table[0, ::-1], -table[2, ::-1], table[4, -2::-1]
-    return _arc_table(kappa, kappa_s, cap)
+    points = kappa.size
+    last = points - 1
+    forward, backward = np.zeros((5, points)), np.zeros((5, points))
+    for index in range(points):
+        forward[0, index], forward[2, index] = kappa[index], kappa_s[index]
+        backward[0, index], backward[2, index] = kappa[last - index], -kappa_s[last - index]
+    for table in (forward, backward):
+        for index in range(last):
+            table[1, index] = table[0, index + 1] - table[0, index]
+            table[3, index] = table[2, index + 1] - table[2, index]
+    forward[4, :last] = cap
+    backward[4, :last] = cap[::-1]
+    return forward, backward
 
 
 class _Scanner:
@@ -177,12 +183,9 @@ class _Scan:
     __slots__ = ('states', 'info', 'floats')
 
     def __init__(self, s, v, a, end, capacity):
-        self.states = np.empty((5, capacity))
-        self.states[:4, 0] = 0.0, s, v, a
-        self.info = np.zeros(4, dtype=np.int64)
-        self.info[_COUNT] = 1
-        self.floats = np.zeros(9)
-        self.floats[_END_AT] = end
+        # Floats whatever the caller holds: one compiled signature (the warm-up's).
+        self.states, self.info, self.floats = _new_scan(
+            float(s), float(v), float(a), float(end), int(capacity))
 
     def parts(self):
         """Return the scan as the kernels take it: (states, info, floats)."""
@@ -245,6 +248,18 @@ def _py_min(first, second):
     See :func:`_py_max`.
     """
     return second if second < first else first
+
+
+@kernel
+def _new_scan(s, v, a, end, capacity):
+    """Return the (states, info, floats) of a scan from (s, s', s'') to ``end`` [m]."""
+    states = np.empty((5, capacity))
+    states[0, 0], states[1, 0], states[2, 0], states[3, 0] = 0.0, s, v, a
+    info = np.zeros(4, dtype=np.int64)
+    info[_COUNT] = 1
+    floats = np.zeros(9)
+    floats[_END_AT] = end
+    return states, info, floats
 
 
 @kernel

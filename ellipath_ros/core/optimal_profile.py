@@ -27,14 +27,15 @@ valleys and end speeds, the fallback and the vertical lines.
 """
 
 import math
+import struct
 
 import numpy as np
 
 from .arc_scan import (
-    _ACCEL_SQUARED, _advance, _ADVANCED, _arc_table, _backwards, _bisect_right,
-    _CELL, _COUNT, _jerk_range, _LIVE, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min,
-    _reversed_rows, _rows, _Scanner, _speed_at, _SPEED_TARGET, _state, _STATUS, _STOPPED,
-    _table_at, _time_at, _TWO)
+    _ACCEL_SQUARED, _advance, _ADVANCED, _arc_tables, _bisect_right, _CELL, _COUNT, _END,
+    _jerk_range, _LIVE, _new_scan, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min,
+    _reversed_rows, _rows, _run, _Scanner, _speed_at, _SPEED_TARGET, _state, _STATUS,
+    _STOPPED, _table_at, _time_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
@@ -42,6 +43,8 @@ from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
     _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows, _straight_motion)
 
+# The key of a solved vertical line: its start and end states and its stretch.
+_EIGHT_FLOATS = struct.Struct('<8d')
 # Grid of the curvature tables along the arc (intervals; more for very tight bends).
 _TABLE_INTERVALS = 2048
 _TABLE_INTERVALS_MAX = 16384
@@ -136,11 +139,11 @@ class _ArcPlanner:
             lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
             cells = np.repeat(lowest, _CAP_STAIR)
         self.grid = grid
-        table = _arc_table(kappa, kappa_s, cells)
+        forward, backward = _arc_tables(kappa, kappa_s, cells)
         cell = self.length / (len(kappa) - 1)
         budget = np.array([_STEP_BUDGET])
-        self.forward = _Scanner(table, cell, limits, budget)
-        self.backward = _Scanner(_backwards(table), cell, limits, budget)
+        self.forward = _Scanner(forward, cell, limits, budget)
+        self.backward = _Scanner(backward, cell, limits, budget)
         # The ceiling places the speed valleys and their speeds.
         self.ceiling = np.empty(grid.size)
         _cruise_speeds(kappa, kappa_s, cells, limits.max_speed * _SPEED_MARGIN,
@@ -160,8 +163,9 @@ class _ArcPlanner:
 
     def line_rows(self, start, end, speed_cap, s_start, s_end):
         """Return :func:`_line_rows` of a vertical line on the planner's limits, solved once."""
-        # Exact keys: -0.0 (a mirrored rest acceleration) is not 0.0 to Ruckig's last bit.
-        key = tuple(float(value).hex() for value in (*start, *end, s_start, s_end)), speed_cap
+        # Exact keys, the floats' bytes: -0.0 (a mirrored rest acceleration) is not 0.0 to
+        # Ruckig's last bit.
+        key = _EIGHT_FLOATS.pack(*start, *end, s_start, s_end), speed_cap
         if key not in self._lines:
             self._lines[key] = _ruckig_rows(
                 start, end, self._cap_speed(speed_cap, s_start, s_end),
@@ -243,16 +247,10 @@ class _ArcPlanner:
             return math.inf
         horizon = min(_PROBE_HORIZON * self._transitions[at_start], 0.5 * self.length)
         reach = _PROBE_REACH * horizon
-        scanner = _Scanner(scanner.table, scanner.cell, limits, np.array([_PROBE_STEPS]))
-        scan = scanner.scan(0.0, speed, accel, reach)
-        try:
-            scanner.run(scan)
-        except _NoMotion:
+        reached, time, last = _probe_scan(scanner.table, scanner.constants, float(speed),
+                                          float(accel), reach, _PROBE_STEPS)
+        if not reached:
             return math.inf
-        if scan.status != 'end':
-            return math.inf
-        time = scan.time_at(reach)
-        last = scan.state(time)[1]
         rest_accel = _PROBE_ACCEL * limits.max_accel
         rest = (math.sqrt(last * last + 2.0 * rest_accel * (horizon - reach)) - last) / rest_accel
         return _rows_duration(line) + time + rest
@@ -479,6 +477,26 @@ class _ArcPlanner:
 
 
 @kernel
+def _probe_scan(table, constants, speed, accel, reach, steps):
+    """
+    Return (reached, time [s], s' there) of a probe's scan from (0, speed, accel) to reach [m].
+
+    On the ``table`` and ``constants`` of one of the plan's scanners, with back-up shares
+    and a budget of ``steps`` of its own (its back-ups must not lower the plan's targets);
+    reached is False where it stops before ``reach`` or runs out of steps.
+    """
+    factor = np.ones(table.shape[1] + 1)
+    budget = np.full(1, steps)
+    scan = _new_scan(0.0, speed, accel, reach, steps + 2)
+    if _run((table, constants, factor, budget), scan) == _OUT_OF_STEPS or (
+            scan[1][_STATUS] != _END):
+        return False, 0.0, 0.0
+    states, count = scan[0], scan[1][_COUNT]
+    time = _time_at(states, count, reach)
+    return True, time, _state(states, count, time)[1]
+
+
+@kernel
 def _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s):
     """
     Fill ``kappa`` and ``kappa_s`` (M,) at the arc lengths ``grid`` (M,), even steps from 0.
@@ -533,9 +551,15 @@ def _cruise_speeds(kappa, kappa_s, cells, speed, accel, jerk, out):
         ceiling = min(speed, cells[max(row - 1, 0)], cells[min(row, last)])
         if kappa[row] > 0.0:
             ceiling = min(ceiling, math.sqrt(accel / kappa[row]))
-        rate = math.hypot(kappa[row] ** 2, kappa_s[row])
-        if rate > 0.0:
-            ceiling = min(ceiling, (jerk / rate) ** (1.0 / 3.0))
+        # The jerk's bound is at least (jerk / (kappa**2 + |kappa_s|))**(1/3) (the sum is at
+        # least the hypot): where that is above the ceiling by far more than rounding, the
+        # bound cannot lower it, and its hypot and cube root (most of the loop's time) are
+        # skipped. Otherwise (and where both terms are 0: no bound) as described.
+        if jerk < ceiling * ceiling * ceiling * (kappa[row] ** 2 + abs(kappa_s[row])) * (
+                1.0 + 1e-9):
+            rate = math.hypot(kappa[row] ** 2, kappa_s[row])
+            if rate > 0.0:
+                ceiling = min(ceiling, (jerk / rate) ** (1.0 / 3.0))
         out[row] = ceiling
 
 
