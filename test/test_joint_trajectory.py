@@ -345,6 +345,44 @@ def test_data_checks_its_structure_on_construction(changes):
         JointTrajectoryData(**fields)
 
 
+def test_data_of_valid_float_arrays_passes_the_same_checks():
+    # Valid C-contiguous float arrays are checked in one compiled pass; it must reject
+    # whatever the checks naming a problem reject, and those then name it.
+    rng = np.random.default_rng(8)
+    times = np.cumsum(rng.uniform(0.01, 0.1, 6)) - 0.01
+    states = rng.normal(size=(3, 6, 3))
+    JointTrajectoryData(NAMES, times, *states)  # valid
+    cases = [({'time_from_start': np.where(np.arange(6) == 0, -0.0, times)}, None),
+             ({'time_from_start': np.where(np.arange(6) == 0, -1e-9, times)},
+              r'^time_from_start\[0\]: expected a time >= 0'),
+             ({'time_from_start': np.where(np.arange(6) == 3, times[2], times)},
+              r'^time_from_start\[3\]: expected a time > time_from_start\[2\]'),
+             ({'time_from_start': np.where(np.arange(6) == 5, np.inf, times)},
+              r'^time_from_start\[5\]: expected finite values'),
+             ({'time_from_start': np.where(np.arange(6) == 0, np.nan, times)},
+              r'^time_from_start\[0\]: expected finite values')]
+    for index, field in enumerate(('positions', 'velocities', 'accelerations')):
+        for bad in (np.nan, -np.inf):
+            changed = states[index].copy()
+            changed[4, index] = bad
+            cases.append(({field: changed}, rf'^{field}\[4\]: expected finite values'))
+    for changes, message in cases:
+        fields = dict(zip(('time_from_start', 'positions', 'velocities', 'accelerations'),
+                          (times, *states)), **changes)
+        if message is None:
+            data = JointTrajectoryData(NAMES, **fields)
+            assert not data.positions.flags.writeable
+            np.testing.assert_array_equal(data.time_from_start, fields['time_from_start'])
+            continue
+        with pytest.raises(InvalidInputError, match=message):
+            JointTrajectoryData(NAMES, **fields)
+        # The same from Fortran-order arrays (copied in C order) and lists (not compiled).
+        fortran = {key: np.asfortranarray(value) if np.ndim(value) == 2 else list(value)
+                   for key, value in fields.items()}
+        with pytest.raises(InvalidInputError, match=message):
+            JointTrajectoryData(NAMES, **fortran)
+
+
 def test_data_is_read_only():
     traj = sample_joint_trajectory(LINE, GEOMETRY, 0.05)
     with pytest.raises(ValueError):

@@ -173,6 +173,15 @@ def _check_structure(traj, error):
     if len(names) != 3:
         # JTC rejects partial goals unless allow_partial_joints_goal is set (default false).
         raise error(f'joint_names: expected 3 names (one per arm), got {len(names)}')
+    values = [getattr(traj, field, None) for field in _POINT_FIELDS]
+    if _float_point_arrays(values):
+        # Float arrays, as the planner makes them: their copies (C order and writeable, the
+        # one array type the kernel is compiled for) checked in one compiled pass.
+        arrays = [np.array(value, order='C') for value in values]
+        if _valid_points(*arrays):
+            for array in arrays:
+                array.setflags(write=False)
+            return (names, *arrays)
     times = _float_array(traj, 'time_from_start', error)
     if times.ndim != 1 or times.size == 0:
         raise error(f'time_from_start: expected shape (K,) with K >= 1 points, got shape '
@@ -195,6 +204,40 @@ def _check_structure(traj, error):
         _require_finite_rows(field, array, error)
         arrays.append(array)
     return (names, times, *arrays)
+
+
+# The array fields of JointTrajectoryData: times (K,), then (K, 3) per joint state.
+_POINT_FIELDS = ('time_from_start', 'positions', 'velocities', 'accelerations')
+
+
+def _float_point_arrays(values):
+    """
+    Return whether ``values`` (``_POINT_FIELDS`` order) are float arrays of the right shapes.
+
+    Those are checked in one compiled pass (:func:`_valid_points`); anything else, and any
+    that fails it, by the checks that name the problem.
+    """
+    times = values[0]
+    return (all(isinstance(value, np.ndarray) and value.dtype == np.float64
+                for value in values)
+            and times.ndim == 1 and times.size > 0
+            and all(value.shape == (times.size, 3) for value in values[1:]))
+
+
+@kernel
+def _valid_points(times, positions, velocities, accelerations):
+    """Return whether all values are finite and the times >= 0 and strictly increasing."""
+    if not times[0] >= 0.0:
+        return False
+    for point in range(times.size):
+        if not math.isfinite(times[point]) or (point > 0 and not times[point] > times[
+                point - 1]):
+            return False
+        for j in range(3):
+            if not (math.isfinite(positions[point, j]) and math.isfinite(velocities[point, j])
+                    and math.isfinite(accelerations[point, j])):
+                return False
+    return True
 
 
 def _float_array(traj, field, error):
@@ -990,10 +1033,11 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     fractions = np.arange(1, check_count + 1) / (check_count + 1.0)
 
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
-    source = tuple(np.ascontiguousarray(values, dtype=float) for values in (
+    # C-contiguous and writeable: the one array type _search_knots is compiled for.
+    source = tuple(np.require(values, float, ('C', 'W')) for values in (
         samples.times, samples.q, samples.qdot, samples.qddot))
     # Below the table's resolution the motion itself is evaluated at every check point.
-    table = (tuple(np.ascontiguousarray(values) for values in samples.planned_table())
+    table = (tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
              if accept >= _PLANNED_TABLE_MIN_TOLERANCE else _NO_TABLE)
     initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
     evaluated = _Evaluated()
