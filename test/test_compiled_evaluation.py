@@ -27,6 +27,7 @@ import os
 from pathlib import Path
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -37,8 +38,8 @@ def _evaluations():
     """Return the arrays of every compiled evaluation on a small seeded case."""
     from ellipath_ros.core.geometry import plan_path
     from ellipath_ros.core.joint_trajectory import (
-        DEFAULT_JOINT_NAMES, executed_table, JointTrajectoryData, MotionSamples,
-        quintic_interpolate, _segment_errors)
+        DEFAULT_JOINT_NAMES, executed_table, JointTrajectoryData, minimal_knots, MotionSamples,
+        quintic_interpolate)
     from ellipath_ros.core.kinematics import (
         DeltaGeometry, forward_kinematics, joint_motion, tcp_derivatives)
     from ellipath_ros.core.motion import _cartesian, _pieces_law
@@ -67,18 +68,31 @@ def _evaluations():
     s, v, a, j = law.state(law_times)
     results += [s, v, a, j, *_cartesian(path, np.clip(s, 0.0, path.length), v, a, j)]
 
-    # Planned positions along a line, sampled every ~0.1 ms: what the knot search reads.
-    grid = np.linspace(0.0, times[-1], 200)
-    still = np.zeros((200, 3))
-    samples = MotionSamples(None, geometry, grid, (
-        points[0] + np.outer(grid, velocities[0]), np.repeat(velocities[:1], 200, axis=0),
-        still, still), (still, still, still))
-    results.append(samples.planned(rng.uniform(0.0, times[-1], 30)))
-    index = np.arange(7)
-    results.append(_segment_errors(samples, None, geometry, knots, index, index + 1,
-                                   np.arange(1, 21) / 21.0))
-    results.append(_segment_errors(samples, samples.planned, geometry, knots, index,
-                                   index + 1, np.arange(1, 21) / 21.0))
+    # A horizontal circle at 1.5 m/s, sampled every ~0.5 ms, and at 4 times only (the
+    # search stops for the motion's states where no sample is near a knot); its knots for a
+    # tolerance read from the planned table and for one below it (the motion evaluated at
+    # the check points, the search run again for them).
+    centre, radius, rate = points[0] - np.array([0.1, 0.0, 0.0]), 0.1, 15.0
+
+    def circle(t):
+        angle = rate * t
+        cos, sin, zero = np.cos(angle), np.sin(angle), np.zeros(t.size)
+        return (centre + radius * np.column_stack((cos, sin, zero)),
+                radius * rate * np.column_stack((-sin, cos, zero)),
+                radius * rate ** 2 * np.column_stack((-cos, -sin, zero)),
+                radius * rate ** 3 * np.column_stack((sin, -cos, zero)))
+
+    motion = SimpleNamespace(duration=0.1, state_at=circle)
+    for count in (200, 4):
+        grid = np.linspace(0.0, motion.duration, count)
+        samples = MotionSamples(motion, geometry, grid, motion.state_at(grid))
+        if count == 200:
+            results.append(samples.planned(rng.uniform(0.0, motion.duration, 30)))
+        for tolerance in (1e-5, 1e-7):
+            found, error = minimal_knots(motion, geometry, tolerance=tolerance,
+                                         samples=samples)
+            results += [found.time_from_start, found.positions, found.velocities,
+                        found.accelerations, [error]]
     return results
 
 

@@ -19,11 +19,15 @@ from types import SimpleNamespace
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import UnreachableError
+from ellipath_ros.core.joint_trajectory import _equidistributed
+from ellipath_ros.core.joint_trajectory import _error_weights
+from ellipath_ros.core.joint_trajectory import _weight_sum
 from ellipath_ros.core.joint_trajectory import check_joint_limits
 from ellipath_ros.core.joint_trajectory import DEFAULT_JOINT_NAMES
 from ellipath_ros.core.joint_trajectory import executed_table
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import minimal_knots
+from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import sample_joint_trajectory
 from ellipath_ros.core.joint_trajectory import TrajectoryRejectedError
@@ -114,6 +118,16 @@ def tcp_error(traj, motion, samples):
                           axis=1).max()
 
 
+def assert_no_knot_can_be_dropped(traj, motion, tolerance):
+    """Assert that without any one interior knot JTC's interpolation leaves the tolerance."""
+    times = traj.time_from_start
+    for drop in range(1, times.size - 1):
+        keep = np.arange(times.size) != drop
+        thinner = JointTrajectoryData(NAMES, times[keep], traj.positions[keep],
+                                      traj.velocities[keep], traj.accelerations[keep])
+        assert tcp_error(thinner, motion, 6001) > 0.9 * tolerance
+
+
 def as_fields(traj, **changes):
     """Copy the trajectory into a plain record (like a converted message), with changes."""
     fields = {name: getattr(traj, name) for name in (
@@ -198,11 +212,57 @@ def test_minimal_knots_stay_within_tolerance(motion, tolerance):
     assert abs(verified - reported) <= 0.02 * verified
     # Few knots: far fewer than a 1 ms sampling, and none can simply be dropped.
     assert times.size <= (7 if tolerance == 1e-4 else 11)
-    for drop in range(1, times.size - 1):
-        keep = np.arange(times.size) != drop
-        thinner = JointTrajectoryData(NAMES, times[keep], traj.positions[keep],
-                                      traj.velocities[keep], traj.accelerations[keep])
-        assert tcp_error(thinner, motion, 6001) > 0.9 * tolerance
+    assert_no_knot_can_be_dropped(traj, motion, tolerance)
+
+
+def test_minimal_knots_off_the_samples_and_below_the_table_tolerance():
+    # Seven samples: most knots are wanted where no sample is near, so the compiled search
+    # stops for the motion's states there and runs again; below the planned table's
+    # tolerance it also stops for the planned positions at its check points.
+    tolerance = 5e-6
+    grid = np.linspace(0.0, ARC.duration, 7)
+    samples = MotionSamples(ARC, GEOMETRY, grid, ARC.state_at(grid))
+    traj, reported = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=tolerance, samples=samples)
+    times = traj.time_from_start
+    assert times[0] == 0.0 and times[-1] == ARC.duration
+    assert not np.isin(times[1:-1], grid).all()  # knots the samples did not give
+    np.testing.assert_allclose(traj.positions,
+                               inverse_kinematics(ARC.state_at(times)[0], GEOMETRY),
+                               rtol=0.0, atol=1e-12)
+    assert reported <= 0.95 * tolerance
+    assert tcp_error(traj, ARC, 60001) <= tolerance
+    # About as few knots as a dense sampling gives (its knots sit on its own samples).
+    dense, _ = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=tolerance)
+    assert times.size <= dense.time_from_start.size + 2
+    assert_no_knot_can_be_dropped(traj, ARC, tolerance)
+
+
+def test_knot_count_estimate_adds_as_numpy_sum():
+    rng = np.random.default_rng(3)
+    for count in [*range(1, 130), 300]:
+        errors = 10.0 ** rng.uniform(-12.0, -3.0, count)
+        errors[rng.random(count) < 0.1] = 0.0  # clamped to 1e-300 first
+        weights = _error_weights(errors)
+        if count <= 128:
+            assert _weight_sum(errors) == np.sum(weights)
+        else:  # blocks of 128 added in turn, NumPy halves: the same within rounding
+            assert abs(_weight_sum(errors) - np.sum(weights)) <= 1e-14 * np.sum(weights)
+
+
+def test_equidistributed_knots_are_numpys_interpolation():
+    rng = np.random.default_rng(5)
+    for count in (1, 2, 5, 40):
+        for size in (2, 3, 9, 60):
+            times = np.concatenate(([0.0], np.cumsum(rng.uniform(1e-4, 0.05, size - 1))))
+            errors = 10.0 ** rng.uniform(-10.0, -4.0, size - 1)
+            errors[0] = 0.0
+            cumulative = np.concatenate(([0.0], np.cumsum(_error_weights(errors))))
+            expected = np.interp(np.linspace(0.0, cumulative[-1], count + 1), cumulative,
+                                 times)
+            expected[0], expected[-1] = times[0], times[-1]
+            found = _equidistributed(times, errors, count)
+            np.testing.assert_array_equal(found, expected)
+            assert (np.diff(found) > 0.0).all()
 
 
 def test_minimal_knots_name_the_unreachable_time():
@@ -283,6 +343,44 @@ def test_data_checks_its_structure_on_construction(changes):
     fields.update(changes)
     with pytest.raises(InvalidInputError):
         JointTrajectoryData(**fields)
+
+
+def test_data_of_valid_float_arrays_passes_the_same_checks():
+    # Valid C-contiguous float arrays are checked in one compiled pass; it must reject
+    # whatever the checks naming a problem reject, and those then name it.
+    rng = np.random.default_rng(8)
+    times = np.cumsum(rng.uniform(0.01, 0.1, 6)) - 0.01
+    states = rng.normal(size=(3, 6, 3))
+    JointTrajectoryData(NAMES, times, *states)  # valid
+    cases = [({'time_from_start': np.where(np.arange(6) == 0, -0.0, times)}, None),
+             ({'time_from_start': np.where(np.arange(6) == 0, -1e-9, times)},
+              r'^time_from_start\[0\]: expected a time >= 0'),
+             ({'time_from_start': np.where(np.arange(6) == 3, times[2], times)},
+              r'^time_from_start\[3\]: expected a time > time_from_start\[2\]'),
+             ({'time_from_start': np.where(np.arange(6) == 5, np.inf, times)},
+              r'^time_from_start\[5\]: expected finite values'),
+             ({'time_from_start': np.where(np.arange(6) == 0, np.nan, times)},
+              r'^time_from_start\[0\]: expected finite values')]
+    for index, field in enumerate(('positions', 'velocities', 'accelerations')):
+        for bad in (np.nan, -np.inf):
+            changed = states[index].copy()
+            changed[4, index] = bad
+            cases.append(({field: changed}, rf'^{field}\[4\]: expected finite values'))
+    for changes, message in cases:
+        fields = dict(zip(('time_from_start', 'positions', 'velocities', 'accelerations'),
+                          (times, *states)), **changes)
+        if message is None:
+            data = JointTrajectoryData(NAMES, **fields)
+            assert not data.positions.flags.writeable
+            np.testing.assert_array_equal(data.time_from_start, fields['time_from_start'])
+            continue
+        with pytest.raises(InvalidInputError, match=message):
+            JointTrajectoryData(NAMES, **fields)
+        # The same from Fortran-order arrays (copied in C order) and lists (not compiled).
+        fortran = {key: np.asfortranarray(value) if np.ndim(value) == 2 else list(value)
+                   for key, value in fields.items()}
+        with pytest.raises(InvalidInputError, match=message):
+            JointTrajectoryData(NAMES, **fortran)
 
 
 def test_data_is_read_only():

@@ -30,7 +30,6 @@ Arrays: times have shape (K,) [s]; positions, velocities and accelerations (K, 3
 """
 
 from dataclasses import dataclass
-import functools
 import math
 from typing import Protocol
 
@@ -174,6 +173,15 @@ def _check_structure(traj, error):
     if len(names) != 3:
         # JTC rejects partial goals unless allow_partial_joints_goal is set (default false).
         raise error(f'joint_names: expected 3 names (one per arm), got {len(names)}')
+    values = [getattr(traj, field, None) for field in _POINT_FIELDS]
+    if _float_point_arrays(values):
+        # Float arrays, as the planner makes them: their copies (C order and writeable, the
+        # one array type the kernel is compiled for) checked in one compiled pass.
+        arrays = [np.array(value, order='C') for value in values]
+        if _valid_points(*arrays):
+            for array in arrays:
+                array.setflags(write=False)
+            return (names, *arrays)
     times = _float_array(traj, 'time_from_start', error)
     if times.ndim != 1 or times.size == 0:
         raise error(f'time_from_start: expected shape (K,) with K >= 1 points, got shape '
@@ -196,6 +204,40 @@ def _check_structure(traj, error):
         _require_finite_rows(field, array, error)
         arrays.append(array)
     return (names, times, *arrays)
+
+
+# The array fields of JointTrajectoryData: times (K,), then (K, 3) per joint state.
+_POINT_FIELDS = ('time_from_start', 'positions', 'velocities', 'accelerations')
+
+
+def _float_point_arrays(values):
+    """
+    Return whether ``values`` (``_POINT_FIELDS`` order) are float arrays of the right shapes.
+
+    Those are checked in one compiled pass (:func:`_valid_points`); anything else, and any
+    that fails it, by the checks that name the problem.
+    """
+    times = values[0]
+    return (all(isinstance(value, np.ndarray) and value.dtype == np.float64
+                for value in values)
+            and times.ndim == 1 and times.size > 0
+            and all(value.shape == (times.size, 3) for value in values[1:]))
+
+
+@kernel
+def _valid_points(times, positions, velocities, accelerations):
+    """Return whether all values are finite and the times >= 0 and strictly increasing."""
+    if not times[0] >= 0.0:
+        return False
+    for point in range(times.size):
+        if not math.isfinite(times[point]) or (point > 0 and not times[point] > times[
+                point - 1]):
+            return False
+        for j in range(3):
+            if not (math.isfinite(positions[point, j]) and math.isfinite(velocities[point, j])
+                    and math.isfinite(accelerations[point, j])):
+                return False
+    return True
 
 
 def _float_array(traj, field, error):
@@ -658,100 +700,6 @@ def sample_joint_trajectory(motion, geometry, period, joint_names=DEFAULT_JOINT_
     return JointTrajectoryData(names, times, q, qdot, qddot)
 
 
-class _Knots:
-    """Knot times and joint states during the knot search (plain mutable arrays)."""
-
-    def __init__(self, time_from_start, positions, velocities, accelerations):
-        self.time_from_start = time_from_start
-        self.positions = positions
-        self.velocities = velocities
-        self.accelerations = accelerations
-
-    def take(self, index):
-        """Keep the knots at ``index`` (sorted)."""
-        return _Knots(self.time_from_start[index], self.positions[index],
-                      self.velocities[index], self.accelerations[index])
-
-
-def _segment_errors(samples, planned, geometry, knots, start, end, fractions):
-    """
-    Largest TCP deviation of JTC's interpolation on each segment start[s] -> end[s].
-
-    The check grid of a segment is its interior at ``fractions`` (M,) of its length. The
-    planned TCP positions there are interpolated from the table of ``samples``
-    (:meth:`MotionSamples.planned_table`), or, if ``planned`` is given, taken from it: a
-    function of the check times (S M,) returning positions (S M, 3). Returns shape (S,); a
-    grid point whose interpolated joints cannot be assembled counts as inf.
-    """
-    times = knots.time_from_start
-    if planned is None:
-        table_times, table_position, table_velocity = samples.planned_table()
-        rows = _NO_ROWS
-    else:
-        t0 = times[start]
-        rows = np.ascontiguousarray(planned(
-            (t0[:, np.newaxis] + (times[end] - t0)[:, np.newaxis] * fractions).ravel()))
-        table_times, table_position, table_velocity = _NO_TABLE
-    errors = np.empty(start.size)
-    _deviations(times, knots.positions, knots.velocities, knots.accelerations, start, end,
-                fractions, rows, table_times, table_position, table_velocity,
-                *_kernel_geometry(geometry)[:5], errors)
-    return errors
-
-
-# Empty stand-ins for _deviations' planned rows or table, whichever it does not read.
-_NO_ROWS = np.empty((0, 3))
-_NO_TABLE = (np.empty(0), np.empty((3, 0)), np.empty((3, 0)))
-
-
-@kernel
-def _deviations(knot_times, positions, velocities, accelerations, start, end, fractions,
-                planned, table_times, table_position, table_velocity, rx, ry, offset, upper,
-                forearm_sq, errors):
-    """
-    Per segment, the largest distance of FK(JTC's quintic) from the planned positions.
-
-    Segment s runs from knot ``start[s]`` to ``end[s]`` and is checked at ``fractions``
-    (M,) of its length. The planned positions are the rows of ``planned`` (S M, 3),
-    row-major over (segment, fraction), or, when it has none, the Hermite interpolation of
-    the table (:func:`_hermite_row`). An interpolated pose that cannot be assembled counts
-    as inf. ``errors`` (S,) receives the result.
-    """
-    c = np.empty((6, 3))
-    reached = np.empty((1, 3))
-    expected = np.empty((1, 3))
-    count = fractions.size
-    from_table = planned.shape[0] == 0
-    for segment in range(start.size):
-        first, second = start[segment], end[segment]
-        t0 = knot_times[first]
-        length = knot_times[second] - t0
-        _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
-                      accelerations, first, second, c)
-        worst = -np.inf
-        for sample in range(count):
-            x = length * fractions[sample]
-            if from_table:
-                _hermite_row(table_times, table_position, table_velocity, t0 + x, expected, 0)
-            else:
-                row = segment * count + sample
-                for axis in range(3):
-                    expected[0, axis] = planned[row, axis]
-            error = np.inf
-            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
-                            _polynomial(c, 2, x, 0), rx, ry,
-                            offset, upper, forearm_sq, reached, 0) == _ASSEMBLED:
-                dx = reached[0, 0] - expected[0, 0]
-                dy = reached[0, 1] - expected[0, 1]
-                dz = reached[0, 2] - expected[0, 2]
-                error = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if error != error:
-                    error = np.inf
-            if error > worst:
-                worst = error
-        errors[segment] = worst
-
-
 class MotionSamples:
     """
     A motion sampled once, in TCP and joint space.
@@ -972,6 +920,12 @@ def _hermite_row(table_times, position, velocity, time, rows, row):
     """
     final = table_times.size - 2
     step = min(max(np.searchsorted(table_times, time, side='right') - 1, 0), final)
+    _hermite_in(table_times, position, velocity, step, time, rows, row)
+
+
+@kernel
+def _hermite_in(table_times, position, velocity, step, time, rows, row):
+    """:func:`_hermite_row` on the table's interval ``step`` (the search already done)."""
     after = step + 1
     start = table_times[step]
     width = table_times[after] - start
@@ -1025,7 +979,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     1. refine: start from knots about 50 ms apart; split every rejected segment in half
        (one vectorised evaluation per round) until all are accepted;
     2. re-place: halving leaves knots on a dyadic lattice, so try fewer knots spread evenly
-       over the measured error density (quintic error ~ h^6, see ``_equidistribute``); a
+       over the measured error density (quintic error ~ h^6, see ``_equidistributed``); a
        trial set replaces the current one only if all its segments pass, and is then
        pruned (3.). At most six trials;
     3. prune: test, for every interior knot at once, the segment that would replace it and
@@ -1036,7 +990,9 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     The result is locally minimal (no single knot can be removed), includes t = 0 and
     t = duration, and is typically within one or two knots of the greedy optimum. Knots sit
     on the motion's samples (:class:`MotionSamples`) nearest to where the search wants them,
-    so the search evaluates the motion only where no sample is near.
+    so the search evaluates the motion only where no sample is near. The search is one
+    compiled call (:func:`_search_knots`); where it needs the motion at a time that no
+    sample gives, it stops, the motion is evaluated there, and it runs again.
 
     Parameters
     ----------
@@ -1077,145 +1033,480 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     fractions = np.arange(1, check_count + 1) / (check_count + 1.0)
 
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
+    # C-contiguous and writeable: the one array type _search_knots is compiled for.
+    source = tuple(np.require(values, float, ('C', 'W')) for values in (
+        samples.times, samples.q, samples.qdot, samples.qddot))
     # Below the table's resolution the motion itself is evaluated at every check point.
-    planned = None if accept >= _PLANNED_TABLE_MIN_TOLERANCE else functools.partial(
-        _planned_positions, motion)
-
-    def errors_of(knots, start, end):
-        return _segment_errors(samples, planned, geometry, knots, start, end, fractions)
-
-    knots = _Knots(*samples.states(*_with_cells(
-        np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1))))
-    times = knots.time_from_start
-    index = np.arange(times.size)
-    errors = errors_of(knots, index[:-1], index[1:])
-    knots, errors = _refine(samples, knots, errors, accept, shortest, errors_of)
-    pruned = False
-    # Dyadic halving leaves knots on a coarse lattice: re-place them from the measured error
-    # density with fewer segments, and keep a set only if every segment passes.
-    times, measured = knots.time_from_start, errors
-    target = min(_segment_count(times, measured, accept), times.size - 2)
-    for _ in range(_REPLACEMENTS):
-        if target < 1:
-            break
-        trial = _Knots(*samples.states(*_with_cells(_equidistribute(times, measured, target))))
-        trial_times = trial.time_from_start
-        if np.diff(trial_times).min() < shortest:
-            break
-        index = np.arange(trial_times.size)
-        trial_errors = errors_of(trial, index[:-1], index[1:])
-        if not np.isfinite(trial_errors).all():
-            # JTC's quintic between two trial knots passes a pose the arms cannot assemble:
-            # the set is rejected, and the next has one segment more, spread by the last
-            # finite measurement (which the error density needs).
-            target += 1
-            if target >= knots.time_from_start.size - 1:
-                break
-            continue
-        times, measured = trial_times, trial_errors
-        if (trial_errors <= accept).all():
-            knots, errors = _prune(trial, trial_errors, accept, errors_of)
-            pruned = True
-            target = min(_segment_count(times, measured, accept),
-                         knots.time_from_start.size - 2)
+    table = (tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
+             if accept >= _PLANNED_TABLE_MIN_TOLERANCE else _NO_TABLE)
+    initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
+    evaluated = _Evaluated()
+    journal = np.empty(0)
+    while True:
+        status, times, q, qdot, qddot, error, wanted, low, high, journal = _search_knots(
+            initial, source, evaluated.states, table, evaluated.planned,
+            _kernel_geometry(geometry)[:5], fractions, accept, shortest, journal)
+        if status == _NEEDS_STATES:
+            evaluated.add_states(wanted, samples.states(wanted, low, high))
+        elif status == _NEEDS_PLANNED:
+            evaluated.add_planned(wanted, _checked_state_at(motion, wanted)[0])
         else:
-            target = max(_segment_count(times, measured, accept), target + 1)
-            if target >= knots.time_from_start.size - 1:
-                break
-    if not pruned:
-        knots, errors = _prune(knots, errors, accept, errors_of)
-    data = JointTrajectoryData(names, knots.time_from_start, knots.positions,
-                               knots.velocities, knots.accelerations)
-    return data, float(errors.max())
-
-
-def _planned_positions(motion, times):
-    """Return the planned TCP positions of ``motion`` at ``times`` (N,), (N, 3)."""
-    return _checked_state_at(motion, times)[0]
-
-
-def _segment_count(times, errors, accept):
-    """Estimate how many segments keep every error at ``accept``; see :func:`_equidistribute`."""
-    total = np.sum(np.maximum(errors, 1e-300) ** (1.0 / 6.0))
-    if not math.isfinite(total):
+            break
+    if status == _TOO_FINE:
         raise InvalidInputError(
-            f'knots: expected finite interpolation errors, got {total} (motion out of reach '
+            f'tolerance: expected a tolerance the motion can meet with knots at least '
+            f'{shortest:g} s apart, got {accept / _SAFETY:g} m (error '
+            f'{low[0]:.3g} m left near t={wanted[0]:.6g} s)')
+    if status == _NOT_FINITE:
+        raise InvalidInputError(
+            f'knots: expected finite interpolation errors, got {error} (motion out of reach '
             'between samples?)')
-    return max(1, math.ceil(total / accept ** (1.0 / 6.0)))
+    return JointTrajectoryData(names, times, q, qdot, qddot), error
 
 
-def _equidistribute(times, errors, count):
+# Outcomes of _search_knots: knots found; stopped for the motion's joint states at knot times
+# no sample gives, or for its planned positions at check times (below the table's
+# resolution); no knots at least the shortest interval apart meet the tolerance; an
+# estimate of the knot count from the errors is not finite.
+_FOUND, _NEEDS_STATES, _NEEDS_PLANNED, _TOO_FINE, _NOT_FINITE = range(5)
+# No planned table: the check points' planned positions are evaluated (_Evaluated.planned).
+_NO_TABLE = (np.empty(0), np.empty((3, 0)), np.empty((3, 0)))
+
+
+class _Evaluated:
+    """What the motion gave where the compiled search stopped for it, kept for its reruns."""
+
+    def __init__(self):
+        # Knots wanted at times (E,) (sorted), placed at times (E,) with q, q_dot, q_ddot.
+        self.states = (np.empty(0), np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
+                       np.empty((0, 3)))
+        # Check times (P,) (sorted) and the planned positions there (P, 3).
+        self.planned = (np.empty(0), np.empty((0, 3)))
+
+    def add_states(self, wanted, states):
+        """Keep :meth:`MotionSamples.states` ``states`` of knots wanted at ``wanted``."""
+        self.states = _merged_rows(self.states, (wanted, *states))
+
+    def add_planned(self, times, positions):
+        """Keep the planned ``positions`` (N, 3) at check ``times`` (N,)."""
+        self.planned = _merged_rows(self.planned, (times, positions))
+
+
+def _merged_rows(kept, added):
+    """Return the arrays of ``kept`` with the rows of ``added``, sorted by the first."""
+    order = np.argsort(np.concatenate((kept[0], added[0])), kind='stable')
+    return tuple(np.ascontiguousarray(np.concatenate((old, np.asarray(new, dtype=float)))[order])
+                 for old, new in zip(kept, added))
+
+
+@kernel
+def _search_knots(initial, source, evaluated, table, planned, geometry, fractions, accept,
+                  shortest, journal):
     """
-    Return ``count + 1`` knot times that spread an estimated error density evenly.
+    Run the knot search of :func:`minimal_knots` from knots wanted at ``initial`` (K,).
 
-    On a smooth stretch the quintic's error grows like ``C h^6`` with the segment length h, so
-    ``(error / h^6)^(1/6)``, constant on each measured segment, is a local density whose
-    integral over a segment is ``error^(1/6)``. Knots at equal steps of its integral balance
-    the segment errors.
+    ``source`` = (times, q, q_dot, q_ddot) of the motion's samples, ``evaluated`` the states
+    of knots wanted where no sample is (:class:`_Evaluated`), ``table`` the planned table
+    (:meth:`MotionSamples.planned_table`), or empty when the planned positions at the check
+    points are those of ``planned`` (times, positions), ``geometry`` the first five of
+    :func:`~ellipath_ros.core.kinematics._kernel_geometry`. Returns (status, times, q,
+    q_dot, q_ddot, largest error, a, b, c), with, for ``_NEEDS_STATES``, the times wanted
+    and their cells (a, b, c) to evaluate; for ``_NEEDS_PLANNED``, the check times (a); for
+    ``_TOO_FINE``, the time (a[0]) and error (b[0]) of the segment that cannot be split;
+    for ``_NOT_FINITE``, the estimate that is not finite as the error; and the ``journal``:
+    the segment errors of every evaluation, in order. A run after a stop repeats the stopped
+    one up to the stop (nothing it used has changed), so it takes those errors from the
+    journal of the stopped run instead of evaluating them again.
     """
-    weights = np.maximum(errors, 1e-300) ** (1.0 / 6.0)
-    cumulative = np.concatenate([[0.0], np.cumsum(weights)])
-    new_times = np.interp(np.linspace(0.0, cumulative[-1], count + 1), cumulative, times)
-    new_times[0], new_times[-1] = times[0], times[-1]
-    return new_times
+    record = (journal, np.zeros(1, np.int64), [np.empty(0)])
+    context = (source, evaluated, table, planned, geometry, fractions, record)
+    low, high = _cells(initial)
+    status, knots, need = _placed(initial, low, high, context)
+    errors, error = np.empty(0), 0.0
+    if status == _FOUND:
+        index = np.arange(knots[0].size)
+        status, errors, need = _segment_errors(knots, index[:-1], index[1:], context, np.inf)
+    if status == _FOUND:
+        status, knots, errors, need = _refine(knots, errors, context, accept, shortest)
+    if status == _FOUND:
+        status, knots, errors, need, error = _replace(knots, errors, context, accept,
+                                                      shortest)
+    if status == _FOUND:
+        error = errors.max()
+    batches = record[2]
+    written = journal.size
+    for batch in batches:
+        written += batch.size
+    journal_out = np.empty(written)
+    journal_out[:journal.size] = journal
+    written = journal.size
+    for batch in batches:
+        journal_out[written:written + batch.size] = batch
+        written += batch.size
+    return (status, knots[0], knots[1], knots[2], knots[3], error, need[0], need[1],
+            need[2], journal_out)
 
 
-def _with_cells(times):
-    """Return ``times`` (K,) and the bounds (K,), (K,) a knot wanted there may move within."""
-    middles = 0.5 * (times[:-1] + times[1:])
-    return times, np.concatenate(([-np.inf], middles)), np.concatenate((middles, [np.inf]))
+@kernel
+def _cells(times):
+    """Return the bounds (K,), (K,) within which knots wanted at ``times`` (K,) may move."""
+    count = times.size
+    low, high = np.empty(count), np.empty(count)
+    low[0], high[-1] = -np.inf, np.inf
+    for knot in range(count - 1):
+        middle = 0.5 * (times[knot] + times[knot + 1])
+        high[knot], low[knot + 1] = middle, middle
+    return low, high
 
 
-def _refine(samples, knots, errors, accept, shortest, errors_of):
-    """Halve rejected segments until every segment error is <= accept."""
+@kernel
+def _no_need():
+    """Return the empty (a, b, c) of an outcome that needs nothing evaluated."""
+    return np.empty(0), np.empty(0), np.empty(0)
+
+
+@kernel
+def _placed(wanted, low, high, context):
+    """
+    Return (status, knots, need): knots wanted at ``wanted`` (K,), each within its cell.
+
+    The rule of :meth:`MotionSamples.states`: the sample nearest to the wanted time if it
+    lies in the middle half of the cell [``low``, ``high``], else the motion's state at the
+    wanted time, taken from the evaluated ones. Knots (times, q, q_dot, q_ddot); status
+    ``_NEEDS_STATES`` with the wanted times and cells evaluated nowhere yet.
+    """
+    sample_times, q, qdot, qddot = context[0]
+    evaluated_wanted, evaluated_times, evaluated_q, evaluated_qdot, evaluated_qddot = context[1]
+    count = wanted.size
+    nearest = np.empty(count, np.int64)
+    usable = np.empty(count, np.bool_)
+    _nearest_samples(sample_times, wanted, low, high, 0.0, nearest, usable)
+    times = np.empty(count)
+    positions, velocities, accelerations = (np.empty((count, 3)), np.empty((count, 3)),
+                                            np.empty((count, 3)))
+    missing = np.zeros(count, np.bool_)
+    for knot in range(count):
+        if usable[knot]:
+            row = nearest[knot]
+            times[knot] = sample_times[row]
+            positions[knot], velocities[knot], accelerations[knot] = q[row], qdot[row], qddot[row]
+            continue
+        row = np.searchsorted(evaluated_wanted, wanted[knot])
+        if row < evaluated_wanted.size and evaluated_wanted[row] == wanted[knot]:
+            times[knot] = evaluated_times[row]
+            positions[knot] = evaluated_q[row]
+            velocities[knot] = evaluated_qdot[row]
+            accelerations[knot] = evaluated_qddot[row]
+        else:
+            missing[knot] = True
+    knots = (times, positions, velocities, accelerations)
+    if missing.any():
+        return _NEEDS_STATES, knots, (wanted[missing], low[missing], high[missing])
+    return _FOUND, knots, _no_need()
+
+
+@kernel
+def _segment_errors(knots, start, end, context, limit):
+    """
+    Return (status, errors, need): the largest TCP deviation on each segment start -> end.
+
+    Of JTC's quintic from knot ``start[s]`` to ``end[s]`` (arrays (S,)) through FK, from
+    the planned positions, on the check grid (``fractions`` of the segment's length): those
+    interpolated from the planned table, or the evaluated ones (status ``_NEEDS_PLANNED``
+    with the check times not yet evaluated). A pose that cannot be assembled counts as inf.
+    A segment's evaluation stops at the first error above ``limit`` (then its error is one
+    above ``limit``, not the largest). A run after a stop takes the errors of the stopped
+    run from its journal (see :func:`_search_knots`), and adds the ones it evaluates.
+    """
+    table, planned, geometry, fractions = context[2], context[3], context[4], context[5]
+    journal, cursor, batches = context[6]
+    if cursor[0] + start.size <= journal.size:
+        cursor[0] += start.size
+        return _FOUND, journal[cursor[0] - start.size:cursor[0]].copy(), _no_need()
+    # Past the journal's end: no later batch is taken from it.
+    cursor[0] = journal.size
+    rx, ry, offset, upper, forearm_sq = geometry
+    times, positions, velocities, accelerations = knots
+    count = fractions.size
+    from_table = table[0].size > 0
+    if not from_table:
+        missing = _missing_check_times(times, start, end, fractions, planned[0])
+        if missing.size:
+            return _NEEDS_PLANNED, np.empty(0), (missing, np.empty(0), np.empty(0))
+    c = np.empty((6, 3))
+    reached = np.empty((1, 3))
+    expected = np.empty((1, 3))
+    errors = np.empty(start.size)
+    table_times = table[0]
+    final = table_times.size - 2
+    for segment in range(start.size):
+        first, second = start[segment], end[segment]
+        t0 = times[first]
+        length = times[second] - t0
+        _fill_quintic(length, positions, positions, velocities, velocities, accelerations,
+                      accelerations, first, second, c)
+        worst = -np.inf
+        # The table interval of the first check point, then walked along the later ones:
+        # the interval _hermite_row would search for each.
+        step = min(max(np.searchsorted(table_times, t0 + length * fractions[0],
+                                       side='right') - 1, 0), final)
+        for sample in range(count):
+            x = length * fractions[sample]
+            if from_table:
+                while step < final and table_times[step + 1] <= t0 + x:
+                    step += 1
+                _hermite_in(table_times, table[1], table[2], step, t0 + x, expected, 0)
+            else:
+                expected[0] = planned[1][np.searchsorted(planned[0], t0 + x)]
+            error = np.inf
+            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
+                            _polynomial(c, 2, x, 0), rx, ry, offset, upper, forearm_sq,
+                            reached, 0) == _ASSEMBLED:
+                dx = reached[0, 0] - expected[0, 0]
+                dy = reached[0, 1] - expected[0, 1]
+                dz = reached[0, 2] - expected[0, 2]
+                error = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if error != error:
+                    error = np.inf
+            if error > worst:
+                worst = error
+                if worst > limit:
+                    break
+        errors[segment] = worst
+    batches.append(errors)
+    return _FOUND, errors, _no_need()
+
+
+@kernel
+def _missing_check_times(times, start, end, fractions, evaluated):
+    """Return the check times of the segments start -> end not in ``evaluated`` (sorted)."""
+    count = fractions.size
+    checks = np.empty(start.size * count)
+    for segment in range(start.size):
+        t0 = times[start[segment]]
+        length = times[end[segment]] - t0
+        for sample in range(count):
+            checks[segment * count + sample] = t0 + length * fractions[sample]
+    found = np.zeros(checks.size, np.bool_)
+    for row in range(checks.size):
+        index = np.searchsorted(evaluated, checks[row])
+        found[row] = index < evaluated.size and evaluated[index] == checks[row]
+    return checks[~found]
+
+
+@kernel
+def _refine(knots, errors, context, accept, shortest):
+    """Halve rejected segments until every segment error is <= accept; (status, knots...)."""
     while True:
         rejected = errors > accept
         if not rejected.any():
-            return knots, errors
-        times = knots.time_from_start
-        lengths = (times[1:] - times[:-1])[rejected]
-        if lengths.min() < 2.0 * shortest:
-            worst = int(np.flatnonzero(rejected)[np.argmin(lengths)])
-            raise InvalidInputError(
-                f'tolerance: expected a tolerance the motion can meet with knots at least '
-                f'{shortest:g} s apart, got {accept / _SAFETY:g} m (error '
-                f'{errors[worst]:.3g} m left near t={times[worst]:.6g} s)')
+            return _FOUND, knots, errors, _no_need()
+        times = knots[0]
+        worst = -1
+        for segment in np.flatnonzero(rejected):
+            if worst < 0 or times[segment + 1] - times[segment] < times[worst + 1] - times[
+                    worst]:
+                worst = segment
+        if times[worst + 1] - times[worst] < 2.0 * shortest:
+            return (_TOO_FINE, knots, errors,
+                    (np.full(1, times[worst]), np.full(1, errors[worst]), np.empty(0)))
         start = np.flatnonzero(rejected)
-        middle, *states = samples.states(0.5 * (times[start] + times[start + 1]),
-                                         times[start], times[start + 1])
-        order = np.argsort(np.concatenate([times, middle]), kind='stable')
-        merged = _Knots(*(np.concatenate([old, new])[order] for old, new in zip(
-            (times, knots.positions, knots.velocities, knots.accelerations),
-            (middle, *states))))
-        is_new = np.concatenate([np.zeros(times.size, bool), np.ones(middle.size, bool)])
-        is_new = is_new[order]
-        child = is_new[:-1] | is_new[1:]
-        new_errors = np.empty(child.size)
+        status, middle, need = _placed(0.5 * (times[start] + times[start + 1]),
+                                       times[start], times[start + 1], context)
+        if status != _FOUND:
+            return status, knots, errors, need
+        # Each middle goes after its segment's start; the two halves are new segments.
+        count = times.size + start.size
+        position = np.arange(times.size) + np.searchsorted(start, np.arange(times.size),
+                                                           side='left')
+        added = start + np.arange(1, start.size + 1)
+        merged = (np.empty(count), np.empty((count, 3)), np.empty((count, 3)),
+                  np.empty((count, 3)))
+        for source_knots, rows in ((knots, position), (middle, added)):
+            for knot in range(rows.size):
+                row = rows[knot]
+                merged[0][row] = source_knots[0][knot]
+                merged[1][row] = source_knots[1][knot]
+                merged[2][row] = source_knots[2][knot]
+                merged[3][row] = source_knots[3][knot]
+        child = np.zeros(count - 1, np.bool_)
+        child[added - 1] = True
+        child[added] = True
+        new_errors = np.empty(count - 1)
         new_errors[~child] = errors[~rejected]
-        start = np.flatnonzero(child)
-        new_errors[child] = errors_of(merged, start, start + 1)
+        halves = np.flatnonzero(child)
+        status, half_errors, need = _segment_errors(merged, halves, halves + 1, context,
+                                                    np.inf)
+        if status != _FOUND:
+            return status, knots, errors, need
+        new_errors[halves] = half_errors
         knots, errors = merged, new_errors
 
 
-def _prune(knots, errors, accept, errors_of):
+@kernel
+def _prune(knots, errors, context, accept):
     """Drop interior knots while the segment replacing one and its neighbours is accepted."""
-    while knots.time_from_start.size > 2:
-        count = knots.time_from_start.size
+    while knots[0].size > 2:
+        count = knots[0].size
         candidates = np.arange(count - 2)
-        merged_errors = errors_of(knots, candidates, candidates + 2)  # drops knot c + 1
+        # The segment from c to c + 2 drops knot c + 1; one above accept is not needed whole.
+        status, merged_errors, need = _segment_errors(knots, candidates, candidates + 2,
+                                                      context, accept)
+        if status != _FOUND:
+            return status, knots, errors, need
         acceptable = np.flatnonzero(merged_errors <= accept)
         if acceptable.size == 0:
             break
-        removed = np.zeros(count, bool)
-        for candidate in acceptable[np.argsort(merged_errors[acceptable], kind='stable')]:
+        removed = np.zeros(count, np.bool_)
+        for candidate in acceptable[np.argsort(merged_errors[acceptable], kind='mergesort')]:
             if not (removed[candidate] or removed[candidate + 2]):
                 removed[candidate + 1] = True
         kept = np.flatnonzero(~removed)
         left = kept[:-1]
         errors = np.where(kept[1:] - left == 1, errors[np.minimum(left, count - 2)],
                           merged_errors[np.minimum(left, count - 3)])
-        knots = knots.take(kept)
-    return knots, errors
+        knots = (knots[0][kept], knots[1][kept], knots[2][kept], knots[3][kept])
+    return _FOUND, knots, errors, _no_need()
+
+
+@kernel
+def _replace(knots, errors, context, accept, shortest):
+    """
+    Re-place refined knots by their error density, then prune (steps 2 and 3).
+
+    Dyadic halving leaves knots on a coarse lattice: trial sets with fewer segments are
+    spread over the measured error density (:func:`_equidistributed`), and a set is kept
+    only if every segment passes. Returns (status, knots, errors, need, estimate).
+    """
+    times, measured = knots[0], errors
+    estimate = _segment_count(measured, accept)
+    if estimate < 0:
+        return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured)
+    target = min(estimate, times.size - 2)
+    pruned = False
+    for _ in range(_REPLACEMENTS):
+        if target < 1:
+            break
+        wanted = _equidistributed(times, measured, target)
+        low, high = _cells(wanted)
+        status, trial, need = _placed(wanted, low, high, context)
+        if status != _FOUND:
+            return status, knots, errors, need, 0.0
+        trial_times = trial[0]
+        if (trial_times[1:] - trial_times[:-1]).min() < shortest:
+            break
+        index = np.arange(trial_times.size)
+        status, trial_errors, need = _segment_errors(trial, index[:-1], index[1:], context,
+                                                     np.inf)
+        if status != _FOUND:
+            return status, knots, errors, need, 0.0
+        if not np.isfinite(trial_errors).all():
+            # JTC's quintic between two trial knots passes a pose the arms cannot assemble:
+            # the set is rejected, and the next has one segment more, spread by the last
+            # finite measurement (which the error density needs).
+            target += 1
+            if target >= knots[0].size - 1:
+                break
+            continue
+        times, measured = trial_times, trial_errors
+        estimate = _segment_count(measured, accept)
+        if estimate < 0:
+            return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured)
+        if (trial_errors <= accept).all():
+            status, knots, errors, need = _prune(trial, trial_errors, context, accept)
+            if status != _FOUND:
+                return status, knots, errors, need, 0.0
+            pruned = True
+            target = min(estimate, knots[0].size - 2)
+        else:
+            target = max(estimate, target + 1)
+            if target >= knots[0].size - 1:
+                break
+    if not pruned:
+        status, knots, errors, need = _prune(knots, errors, context, accept)
+        return status, knots, errors, need, 0.0
+    return _FOUND, knots, errors, _no_need(), 0.0
+
+
+@kernel
+def _error_weights(errors):
+    """Return ``errors ** (1/6)`` (each at least 1e-300 ** (1/6)): see _equidistributed."""
+    weights = np.empty(errors.size)
+    for segment in range(errors.size):
+        weights[segment] = max(errors[segment], 1e-300) ** (1.0 / 6.0)
+    return weights
+
+
+@kernel
+def _weight_sum(errors):
+    """
+    Return the sum of :func:`_error_weights`, added as ``numpy.sum`` adds up to 128 values.
+
+    NumPy's pairwise summation: a plain loop below 8 values, else eight interleaved partial
+    sums (to 128 values; NumPy halves longer arrays, here blocks of 128 are added in turn),
+    so that the estimates equal NumPy's.
+    """
+    weights = _error_weights(errors)
+    total = 0.0
+    for first in range(0, weights.size, 128):
+        block = weights[first:first + 128]
+        if block.size < 8:
+            part = 0.0
+            for value in block:
+                part += value
+        else:
+            partial = block[:8].copy()
+            row = 8
+            while row < block.size - block.size % 8:
+                partial += block[row:row + 8]
+                row += 8
+            part = (((partial[0] + partial[1]) + (partial[2] + partial[3]))
+                    + ((partial[4] + partial[5]) + (partial[6] + partial[7])))
+            for value in block[row:]:
+                part += value
+        total += part
+    return total
+
+
+@kernel
+def _segment_count(errors, accept):
+    """
+    Estimate how many segments keep every error at ``accept``; -1 if the errors say nothing.
+
+    See :func:`_equidistributed`; -1 when the sum of the weights is not finite.
+    """
+    total = _weight_sum(errors)
+    if not math.isfinite(total):
+        return -1
+    return max(1, math.ceil(total / accept ** (1.0 / 6.0)))
+
+
+@kernel
+def _equidistributed(times, errors, count):
+    """
+    Return ``count + 1`` knot times that spread an estimated error density evenly.
+
+    On a smooth stretch the quintic's error grows like ``C h^6`` with the segment length h, so
+    ``(error / h^6)^(1/6)``, constant on each measured segment, is a local density whose
+    integral over a segment is ``error^(1/6)``. Knots at equal steps of its integral balance
+    the segment errors. The arithmetic of ``numpy.cumsum``, ``linspace`` and ``interp``.
+    """
+    weights = _error_weights(errors)
+    cumulative = np.empty(times.size)
+    cumulative[0] = 0.0
+    for segment in range(weights.size):
+        cumulative[segment + 1] = cumulative[segment] + weights[segment]
+    step = cumulative[-1] / count
+    new_times = np.empty(count + 1)
+    new_times[0], new_times[-1] = times[0], times[-1]
+    for knot in range(1, count):
+        level = knot * step
+        # The segment whose measured weight holds this level: last start at or below it.
+        segment = min(np.searchsorted(cumulative, level, side='right') - 1, weights.size - 1)
+        slope = (times[segment + 1] - times[segment]) / (
+            cumulative[segment + 1] - cumulative[segment])
+        new_times[knot] = slope * (level - cumulative[segment]) + times[segment]
+    return new_times
 
 
 def check_joint_limits(traj, geometry, joint_limits, *, samples_per_segment=0, table=None):
