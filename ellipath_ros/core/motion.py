@@ -622,10 +622,11 @@ def _piece_check_times(motion, bounds):
     """
     Return the default samples of ``motion`` (a law of constant-jerk pieces), sorted [s].
 
-    Even steps across each interval of ``bounds`` (:func:`_smooth_bounds`), at most ``_PIECE_PERIOD``
-    apart (longer where the motion would need more than ``_METRICS_SAMPLES`` samples) and
-    at least two, so that every interval has a sample inside it for
-    :func:`_refined_peaks`; both sides of every bound (:func:`_piece_sample_times`).
+    Even steps across each interval of ``bounds`` (:func:`_smooth_bounds`), at most
+    ``_PIECE_PERIOD`` apart (longer where the motion would need more than
+    ``_METRICS_SAMPLES`` samples) and at least two, so that every interval has a sample
+    inside it for :func:`_refined_peaks`; both sides of every bound
+    (:func:`_piece_sample_times`).
     """
     period = max(_PIECE_PERIOD, motion.duration / _METRICS_SAMPLES)
     counts = np.maximum(np.ceil(np.diff(bounds) / period), 2.0).astype(np.int64)
