@@ -33,18 +33,19 @@ PROFILES = ('curvature', 'time_optimal')
 # The default samples follow the law's pieces: even steps across each constant-jerk piece, at
 # most _PIECE_PERIOD apart [s] and at least two per piece, plus both sides of every bound
 # (fewer where a motion would need more than _METRICS_SAMPLES samples). Within a piece s' is a
-# quadratic in time, so the refined peak speed is exact; on 1,000 seeded random legs of each
-# kind (scripts/sample_accuracy.py) the refined peaks match a 10 us reference grid to 1e-7
-# (speed), 1e-6 (acceleration) and 1e-4 (jerk: a sharp bend just past T1 of a paper join).
+# quadratic in time, so the parabola finds the peak speed between samples; on 967 seeded random legs of each
+# join (scripts/sample_accuracy.py) the refined peaks match a 10 us reference grid to 3e-9
+# (speed), 1e-6 (acceleration) and 8e-5 (jerk: a sharp bend just past T1 of a paper join).
 _PIECE_PERIOD = 2e-4
 # A mark of the path (where its curvature rate steps) closer than this share of the duration
-# to a bound of the law's pieces is that bound: the law's pieces already end at T1 and T2.
+# to a bound of the law's pieces is taken as that bound: a piece between them would be a
+# rounding error wide.
 _SAME_BOUND = 1e-8
 _METRICS_SAMPLES = 100000
 # A sequence of laws (the curvature profile, seconds long) is sampled by its own pieces too:
 # this many even steps across each piece (each panel of the curvature law). With the peaks
-# refined between samples, 4 match the 10 us reference to 1e-7 on the same legs (8, before
-# the refinement took every triple of samples of a piece, to 1e-6).
+# refined between samples, 4 match the 10 us reference to 2e-7 on 953 such legs (8, before
+# the refinement took every triple of samples of a piece, to 1.2e-6).
 _PIECE_SAMPLES = 4
 # A sampled peak is refined by a parabola only where the gaps to its two neighbours are within
 # this ratio (see _refined_peaks).
