@@ -33,9 +33,10 @@ PROFILES = ('curvature', 'time_optimal')
 # The default samples follow the law's pieces: even steps across each constant-jerk piece, at
 # most _PIECE_PERIOD apart [s] and at least two per piece, plus both sides of every bound
 # (fewer where a motion would need more than _METRICS_SAMPLES samples). Within a piece s' is a
-# quadratic in time, so the parabola finds the peak speed between samples; on 967 seeded random legs of each
-# join (scripts/sample_accuracy.py) the refined peaks match a 10 us reference grid to 3e-9
-# (speed), 1e-6 (acceleration) and 8e-5 (jerk: a sharp bend just past T1 of a paper join).
+# quadratic in time, so the parabola finds the peak speed between samples; on 967 seeded
+# random legs of each join (scripts/sample_accuracy.py) the refined peaks match a 10 us
+# reference grid to 3e-9 (speed), 1e-6 (acceleration) and 8e-5 (jerk: a sharp bend just past
+# T1 of a paper join).
 _PIECE_PERIOD = 2e-4
 # A mark of the path (where its curvature rate steps) closer than this share of the duration
 # to a bound of the law's pieces is taken as that bound: a piece between them would be a
