@@ -709,10 +709,10 @@ class MotionSamples:
     the motion again: a knot is placed on the sample nearest to where a rule
     wants it (:meth:`states`), and the motion is evaluated only where no
     sample is near enough. A timed motion brings its own samples (those of its
-    final limit check, ``sampled_states``: every 0.1 ms and both sides of every
-    piece bound of its law; the curvature profile's 8 even steps across each of
-    its pieces); any other motion is sampled every ``_SAMPLE_PERIOD`` and at its
-    jerk steps. A uniform slow-down
+    final limit check, ``sampled_states``: even steps at most 0.2 ms apart, at
+    least two, across each constant-jerk piece of its law and both sides of every
+    piece bound; the curvature profile's 4 even steps across each of its pieces);
+    any other motion is sampled every ``_SAMPLE_PERIOD`` and at its jerk steps. A uniform slow-down
     (:meth:`scaled`) only rescales them: the joint motion of a motion slowed
     down by f is the same joint path with velocities / f and accelerations /
     f**2.
@@ -846,7 +846,7 @@ class MotionSamples:
 
         Interpolated between the samples by the cubic through position and
         velocity at both ends: its error is at most a jerk step times h**3 / 96
-        for samples h apart, about 1e-10 m at 0.1 ms, a millionth of the
+        for samples h apart, about 1e-9 m at 0.2 ms, a ten-thousandth of the
         tolerances it serves (``_PLANNED_TABLE_MIN_TOLERANCE`` and up).
         """
         table_times, position, velocity = self.planned_table()

@@ -30,14 +30,24 @@ from .errors import InvalidInputError, require_range
 from .geometry import _path_rows, PickPlacePath
 
 PROFILES = ('curvature', 'time_optimal')
-# Default sample period of TimedMotion.metrics [s], and its most samples.
-_CHECK_PERIOD = 1e-4
+# The default samples follow the law's pieces: even steps across each constant-jerk piece, at
+# most _PIECE_PERIOD apart [s] and at least two per piece, plus both sides of every bound
+# (fewer where a motion would need more than _METRICS_SAMPLES samples). Within a piece s' is a
+# quadratic in time, so the parabola finds the peak speed between samples; on 967 seeded
+# random legs of each join (scripts/sample_accuracy.py) the refined peaks match a 10 us
+# reference grid to 3e-9 (speed), 1e-6 (acceleration) and 8e-5 (jerk: a sharp bend just past
+# T1 of a paper join).
+_PIECE_PERIOD = 2e-4
+# A mark of the path (where its curvature rate steps) closer than this share of the duration
+# to a bound of the law's pieces is taken as that bound: a piece between them would be a
+# rounding error wide.
+_SAME_BOUND = 1e-8
 _METRICS_SAMPLES = 100000
-# A sequence of laws (the curvature profile, seconds long) is sampled by its own pieces
-# instead: this many even steps across each piece (each panel of the curvature law). With the
-# peaks refined between samples, 4 already match a 20 us check to 2e-9 on seeded random legs
-# of 0.5-201 s (the cap ratio to 1e-5: the cap is piecewise linear).
-_PIECE_SAMPLES = 8
+# A sequence of laws (the curvature profile, seconds long) is sampled by its own pieces too:
+# this many even steps across each piece (each panel of the curvature law). With the peaks
+# refined between samples, 4 match the 10 us reference to 2e-7 on 953 such legs (8, before
+# the refinement took every triple of samples of a piece, to 1.2e-6).
+_PIECE_SAMPLES = 4
 # A sampled peak is refined by a parabola only where the gaps to its two neighbours are within
 # this ratio (see _refined_peaks).
 _EVEN_SPACING = 0.25
@@ -120,12 +130,18 @@ def _piece_sample_times(bounds, count):
     """
     Return sorted times [s]: ``count`` even steps across each interval of ``bounds`` (K + 1,).
 
-    Each interior bound is taken 1e-9 of the whole span off on both sides (the law
-    is the next piece's at the bound itself), the ends exactly.
+    ``count`` is one number, or one per interval (K,), each >= 1. Each interior
+    bound is taken 1e-9 of the whole span off on both sides (the law is the next
+    piece's at the bound itself), the ends exactly.
     """
     epsilon = 1e-9 * float(bounds[-1])
     starts, widths = bounds[:-1], np.diff(bounds)
-    inside = (starts[:, None] + widths[:, None] * (np.arange(1, count) / count)).ravel()
+    counts = np.broadcast_to(np.asarray(count, dtype=np.int64), starts.shape)
+    # Interval i has counts[i] - 1 interior samples, at steps 1 .. counts[i] - 1.
+    interval = np.repeat(np.arange(starts.size), counts - 1)
+    first = np.cumsum(counts - 1) - (counts - 1)
+    step = np.arange(interval.size) - first[interval] + 1
+    inside = starts[interval] + widths[interval] * (step / counts[interval])
     return np.sort(np.concatenate((inside, bounds[[0, -1]],
                                    np.maximum(bounds[1:-1] - epsilon, 0.0),
                                    np.minimum(bounds[1:-1] + epsilon, bounds[-1]))))
@@ -311,17 +327,18 @@ class TimedMotion:
         s, v, a, j = self.path_state(t)
         return _cartesian(self.path, s, v, a, j)
 
-    def metrics(self, sample_period=_CHECK_PERIOD):
+    def metrics(self, sample_period=None):
         """
-        Return the motion's numbers, sampled every ``sample_period``.
+        Return the motion's numbers, on the default samples or every ``sample_period``.
 
         Parameters
         ----------
-        sample_period : float
-            Time between samples [s], in (0, 0.1]; longer where the motion
-            would need more than ``_METRICS_SAMPLES`` samples. The default
-            reads the samples of :meth:`sampled_norms` (the curvature
-            profile's follow its pieces), each peak refined between them.
+        sample_period : float, optional
+            Time between samples [s], in (0, 0.1], plus both sides of every
+            piece bound of the law; longer where the motion would need more
+            than ``_METRICS_SAMPLES`` samples. Omitted: the samples of
+            :meth:`sampled_norms`, which follow the law's pieces. Each peak is
+            refined between the samples.
 
         Returns
         -------
@@ -332,13 +349,13 @@ class TimedMotion:
             ``accel_jump_T2`` [m/s**2]; plain floats.
 
         """
-        period = require_range('sample_period', sample_period, 0.0, 0.1, low_open=True,
-                               unit='s')
-        if period == _CHECK_PERIOD:
+        if sample_period is None:
             if self._peaks is None:
                 self.sampled_norms()
             speed, accel, jerk = self._peaks
         else:
+            period = require_range('sample_period', sample_period, 0.0, 0.1, low_open=True,
+                                   unit='s')
             period = max(period, self.duration / _METRICS_SAMPLES)
             speed, accel, jerk = _sampled(self, _check_times(self, period))[3]
         return {'duration': float(self.duration),
@@ -351,14 +368,16 @@ class TimedMotion:
         """
         Return the motion sampled as :meth:`metrics` samples it by default.
 
-        Every ``_CHECK_PERIOD`` (fewer samples where the motion would need more
-        than ``_METRICS_SAMPLES``) and on both sides of every bound of the
-        law's constant-jerk pieces; a sequence of laws (the curvature profile)
-        at ``_PIECE_SAMPLES`` even steps across each of its pieces instead
+        Even steps across each of the law's constant-jerk pieces (split where
+        the path's curvature rate steps, :func:`_smooth_bounds`), at most
+        ``_PIECE_PERIOD`` apart and at least two per piece (fewer samples where
+        the motion would need more than ``_METRICS_SAMPLES``), and both sides of
+        every bound; a sequence of laws (the curvature profile) at
+        ``_PIECE_SAMPLES`` even steps across each of its pieces
         (:meth:`_Sequence.sample_times`). The peaks are kept for :meth:`metrics`:
-        each local maximum of a norm between two samples of the same piece is
-        refined by the parabola through it and its neighbours
-        (:func:`_refined_peaks`), so that a peak between samples is not missed.
+        the maximum of the parabola through three samples of one piece, where it
+        lies between them, counts too (:func:`_refined_peaks`), so that a peak
+        between samples is not missed.
 
         Returns
         -------
@@ -367,27 +386,29 @@ class TimedMotion:
             [m/s**3]), each of shape (N,).
 
         """
-        t = self._norm_times()
-        s, states, norms, peaks = _sampled(self, t)
+        bounds = _smooth_bounds(self)
+        t = self._norm_times(bounds)
+        s, states, norms, peaks = _sampled(self, t, bounds)
         object.__setattr__(self, '_peaks', peaks)
         object.__setattr__(self, '_states', (t, *states))
         return (s, *norms)
 
-    def _norm_times(self):
-        """Return the sorted sample times [s] (N,) of :meth:`sampled_norms`."""
+    def _norm_times(self, bounds):
+        """Return the sorted sample times [s] (N,) of :meth:`sampled_norms` (its bounds)."""
         if isinstance(self.law, _Sequence):
             return np.minimum(self.law.sample_times(_PIECE_SAMPLES) * self.time_scale,
                               self.duration)
-        return _grid_times(self)
+        return _piece_check_times(self, bounds)
 
     def sampled_states(self):
         """
         Return the samples of :meth:`sampled_norms`, as vectors.
 
-        Every ``_CHECK_PERIOD`` and on both sides of every bound of the law's
-        constant-jerk pieces; the curvature profile's at ``_PIECE_SAMPLES`` even
-        steps across each of its pieces (the planner's knots, joint peaks and jerk
-        steps read them too).
+        Even steps at most ``_PIECE_PERIOD`` apart (at least two) across each of
+        the law's constant-jerk pieces (split where the path's curvature rate
+        steps) and both sides of every bound; the
+        curvature profile's at ``_PIECE_SAMPLES`` even steps across each of its
+        pieces (the planner's knots, joint peaks and jerk steps read them too).
 
         Returns
         -------
@@ -599,9 +620,19 @@ def _times_at_lengths(times, s0, v0, a0, jerk, lengths, out):
         out[row] = start + x
 
 
-def _grid_times(motion):
-    """Return the default grid of ``motion``: :func:`_check_times` every ``_CHECK_PERIOD``."""
-    return _check_times(motion, max(_CHECK_PERIOD, motion.duration / _METRICS_SAMPLES))
+def _piece_check_times(motion, bounds):
+    """
+    Return the default samples of ``motion`` (a law of constant-jerk pieces), sorted [s].
+
+    Even steps across each interval of ``bounds`` (:func:`_smooth_bounds`), at most
+    ``_PIECE_PERIOD`` apart (longer where the motion would need more than
+    ``_METRICS_SAMPLES`` samples) and at least two, so that every interval has a sample
+    inside it for :func:`_refined_peaks`; both sides of every bound
+    (:func:`_piece_sample_times`).
+    """
+    period = max(_PIECE_PERIOD, motion.duration / _METRICS_SAMPLES)
+    counts = np.maximum(np.ceil(np.diff(bounds) / period), 2.0).astype(np.int64)
+    return np.minimum(_piece_sample_times(bounds, counts), motion.duration)
 
 
 def _sample_times(duration, period):
@@ -629,20 +660,43 @@ def _check_times(motion, period):
                                    np.minimum(bounds + epsilon, motion.duration))))
 
 
-def _sampled(motion, t):
+def _smooth_bounds(motion):
+    """
+    Return the sorted times [s] (K + 1,) between which the norms of ``motion`` are smooth.
+
+    The bounds of its law's pieces, and the path's marks where its curvature rate
+    steps (:meth:`TimedMotion._mark_times`: T1, T2, the ends of a G2 join's
+    transitions) that are not within ``_SAME_BOUND`` of one: there the jerk steps
+    inside a piece of the law. A sequence of laws (the curvature profile, paper join
+    only) has its laws' bounds and those of their pieces: its laws meet at T1 and T2,
+    its only marks (on 199 of 199 seeded legs none added a bound; finding them by
+    Newton steps on a sequence cost 0.1 ms of CPU a leg).
+    """
+    law = motion.law
+    if not isinstance(law, _JerkPieces):
+        return law.bounds()[0] * motion.time_scale
+    bounds = law.times * motion.time_scale
+    marks = motion._mark_times()
+    if marks.size:
+        apart = (np.abs(marks[:, None] - bounds[None, :]).min(axis=1)
+                 > _SAME_BOUND * motion.duration)
+        bounds = np.sort(np.concatenate((bounds, marks[apart])))
+    return bounds
+
+
+def _sampled(motion, t, bounds=None):
     """
     Return (s, states, norms, peaks) of ``motion`` at sorted times ``t`` (N,) within it.
 
     ``states`` are :meth:`TimedMotion.state_at`'s four (N, 3) arrays, ``norms`` the
     norms (3, N) of velocity, acceleration and jerk, ``peaks`` their largest values
-    (three floats) with each local maximum refined between the samples of one piece
-    of the law (:func:`_refined_peaks`).
+    (three floats), refined between the samples of each interval of ``bounds``
+    (:func:`_smooth_bounds` when omitted; :func:`_refined_peaks`).
     """
     s, v, a, j = motion.path_state(t)
     states, norms = _cartesian_and_norms(motion.path, s, v, a, j)
-    law = motion.law
-    bounds = law.times if hasattr(law, 'times') else law.bounds()[0]
-    pieces = np.searchsorted(bounds[1:-1] * motion.time_scale, t, side='right')
+    bounds = _smooth_bounds(motion) if bounds is None else bounds
+    pieces = np.searchsorted(bounds[1:-1], t, side='right')
     peaks = np.empty(3)
     _refined_peaks(np.ascontiguousarray(t, dtype=float), pieces, norms, peaks)
     return s, states, norms, tuple(float(peak) for peak in peaks)
@@ -653,12 +707,14 @@ def _refined_peaks(t, pieces, norms, peaks):
     """
     Fill ``peaks`` (3,) with the largest of each row of ``norms`` (3, N) at sorted ``t`` (N,).
 
-    A sample that is a local maximum with both neighbours in its piece
-    (``pieces``, (N,): the law's piece of each sample; the norms are smooth
-    within one), spaced about evenly (neither gap below ``_EVEN_SPACING`` of
-    the other), is refined by the vertex of the parabola through the three: a
-    peak between samples is then missed by a term of third order in the sample
-    spacing instead of second.
+    Every three consecutive samples of one piece (``pieces``, (N,): the
+    interval of :func:`_smooth_bounds` of each sample; the norms are smooth
+    within one), spaced about evenly
+    (neither gap below ``_EVEN_SPACING`` of the other), add the vertex of the
+    parabola through them where it is a maximum between the outer two: a peak
+    between samples is then missed by a term of third order in the sample
+    spacing instead of second (none for the speed, a quadratic within a piece),
+    also where it lies between a piece's last two samples.
     """
     count = t.size
     for row in range(3):
@@ -668,8 +724,7 @@ def _refined_peaks(t, pieces, norms, peaks):
             best = max(best, values[index])
         for index in range(1, count - 1):
             here = values[index]
-            if (here < values[index - 1] or here < values[index + 1]
-                    or pieces[index - 1] != pieces[index] or pieces[index + 1] != pieces[index]):
+            if pieces[index - 1] != pieces[index] or pieces[index + 1] != pieces[index]:
                 continue
             h_1, h_2 = t[index] - t[index - 1], t[index + 1] - t[index]
             # Only about even spacing: beside a sample just off a bound (or a step of the
@@ -682,5 +737,8 @@ def _refined_peaks(t, pieces, norms, peaks):
             curvature = 2.0 * (d_2 - d_1) / (h_1 + h_2)
             if curvature < 0.0:
                 slope = (d_1 * h_2 + d_2 * h_1) / (h_1 + h_2)
-                best = max(best, here - slope * slope / (2.0 * curvature))
+                # The vertex lies slope / -curvature after the middle sample: between the
+                # outer two it interpolates; beyond them it would extrapolate.
+                if h_1 * curvature <= slope <= -h_2 * curvature:
+                    best = max(best, here - slope * slope / (2.0 * curvature))
         peaks[row] = best

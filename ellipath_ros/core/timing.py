@@ -20,9 +20,10 @@ Two profiles (:func:`time_motion`): ``curvature``, the paper's (section 2.3,
 the paper (:mod:`~ellipath_ros.core.optimal_profile`). Both return a
 :class:`~ellipath_ros.core.motion.TimedMotion`. The constructions aim at a
 margin below the limits (:mod:`~ellipath_ros.core.limits`); the result is then
-sampled (on the samples of its metrics, every 0.1 ms) and, should a limit or
-the speed cap be broken there after all, slowed down uniformly in time until
-it is not.
+sampled (on the samples of its metrics, which follow the law's pieces: at most
+0.2 ms apart and both sides of every piece bound) and, should a limit or the
+speed cap be broken there after all, slowed down uniformly in time until it is
+not.
 """
 
 import math
@@ -69,7 +70,7 @@ def _within_limits(motion, limits, speed_cap):
         np.cbrt(jerk / limits.max_jerk)])
     if speed_cap is not None:
         needed = np.maximum(needed, speed / _cap_values(speed_cap, s))
-    times = _around(motion._norm_times(), needed >= 1.0 - _SAFETY_WINDOW)
+    times = _around(motion.sampled_states()[0], needed >= 1.0 - _SAFETY_WINDOW)
     s, _, norms, peaks = _sampled(motion, times)
     factor = max(factor, _excess(s, norms[0], peaks, limits, speed_cap))
     return motion.scaled(factor * (1.0 + _SAFETY_SLACK))
