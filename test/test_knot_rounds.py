@@ -12,11 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The rounds of points added for the executed limits: the one needing least slow-down serves."""
+"""Points added for the executed limits: the round needing least slow-down, within tolerance."""
 
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import planner
+from ellipath_ros.core.joint_trajectory import (
+    MotionSamples, quintic_interpolate, segment_deviations)
+from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
+import numpy as np
 
 
 def test_a_leg_is_published_from_the_round_of_points_that_needs_the_least_slow_down(
@@ -57,3 +61,25 @@ def test_segments_that_added_points_make_stay_within_the_knot_tolerance():
     assert dense <= config.knot_tolerance
     assert leg.max_interpolation_error <= config.knot_tolerance
     assert leg.max_interpolation_error >= 0.95 * dense
+
+
+def test_segment_deviations_are_the_quintics_distance_from_the_motion():
+    pick, place = random_pairs(4, 11)[3]
+    config = PlannerConfig()
+    leg = plan_transfer(pick, place, config)
+    trajectory = leg.joint_trajectory
+    samples = MotionSamples.of(leg.motion, config.geometry)
+    segments = np.arange(0, trajectory.time_from_start.size - 1, 2)
+    times = trajectory.time_from_start
+    fractions = np.arange(1, 25) / 25.0
+    t = (times[segments, None] + (times[segments + 1] - times[segments])[:, None]
+         * fractions).ravel()
+    q, _, _ = quintic_interpolate(trajectory, t)
+    expected = np.linalg.norm(forward_kinematics(q, config.geometry)
+                              - leg.motion.state_at(t)[0], axis=1).reshape(-1, 24).max(axis=1)
+    # Below the table's resolution the motion itself is evaluated: the same distances.
+    exact = segment_deviations(samples, trajectory, segments, 1e-6)
+    np.testing.assert_allclose(exact, expected, rtol=1e-9, atol=1e-12)
+    # From the samples' table: within a small share of the default tolerance.
+    from_table = segment_deviations(samples, trajectory, segments, config.knot_tolerance)
+    np.testing.assert_allclose(from_table, expected, rtol=0.0, atol=1e-3 * config.knot_tolerance)

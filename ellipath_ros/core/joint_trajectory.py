@@ -1064,6 +1064,65 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     return JointTrajectoryData(names, times, q, qdot, qddot), error
 
 
+def segment_deviations(samples, trajectory, segments, tolerance, check_samples=24):
+    """
+    Return the largest TCP deviation [m] (S,) of JTC's quintic on each of ``segments``.
+
+    Checked as :func:`minimal_knots` checks a segment: on ``check_samples`` even interior
+    points, against the planned positions interpolated from ``samples``' table
+    (:meth:`MotionSamples.planned_table`), or, for a ``tolerance`` below the table's
+    resolution, evaluated from the motion. A pose that cannot be assembled counts as inf.
+
+    Parameters
+    ----------
+    samples : MotionSamples
+        The samples of the motion that ``trajectory`` follows.
+    trajectory : JointTrajectoryData
+        Points on the motion (exact joint states at their times).
+    segments : numpy.ndarray
+        Indices (S,) of the segments (point i to i + 1) to check.
+    tolerance : float
+        The tolerance the deviations are for [m] (chooses the table or the motion).
+    check_samples : int
+        Interior check points per segment.
+
+    Returns
+    -------
+    numpy.ndarray
+        The deviations (S,) [m].
+
+    """
+    segments = np.asarray(segments, dtype=np.int64)
+    fractions = np.arange(1, check_samples + 1) / (check_samples + 1.0)
+    knots = tuple(np.require(values, float, ('C', 'W')) for values in (
+        trajectory.time_from_start, trajectory.positions, trajectory.velocities,
+        trajectory.accelerations))
+    geometry = _kernel_geometry(samples.geometry)[:5]
+    table = (tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
+             if _SAFETY * tolerance >= _PLANNED_TABLE_MIN_TOLERANCE else _NO_TABLE)
+    planned = (np.empty(0), np.empty((0, 3)))
+    while True:
+        status, deviations, need = _deviations_of(knots, segments, table, planned, geometry,
+                                                  fractions)
+        if status != _NEEDS_PLANNED:
+            return deviations
+        # Below the table's resolution: the motion at the check times the kernel asked for.
+        planned = _merged_rows(planned, (need[0], _checked_state_at(samples.motion,
+                                                                    need[0])[0]))
+
+
+@kernel
+def _deviations_of(knots, segments, table, planned, geometry, fractions):
+    """Return :func:`_segment_errors` of ``segments`` (S,) of ``knots``, none stopping."""
+    # The context of _search_knots, with what _segment_errors does not read left empty.
+    source = (np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)))
+    evaluated = (np.empty(0), np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
+                 np.empty((0, 3)))
+    record = (np.empty(0), np.zeros(1, np.int64), [np.empty(0)])
+    context = (source, evaluated, table, planned, geometry, fractions, record)
+    return _segment_errors(knots, segments, segments + 1, context, np.inf)
+
+
 # Outcomes of _search_knots: knots found; stopped for the motion's joint states at knot times
 # no sample gives, or for its planned positions at check times (below the table's
 # resolution); no knots at least the shortest interval apart meet the tolerance; an

@@ -36,7 +36,8 @@ from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
     _fill_quintic, _polynomial, check_joint_limits, EXECUTED_KEYS, executed_table,
     JointTrajectoryData, minimal_knots, MotionSamples, on_whole_nanoseconds,
-    quintic_interpolate, quintic_positions, sample_joint_trajectory, validate_jtc)
+    quintic_interpolate, quintic_positions, sample_joint_trajectory, segment_deviations,
+    validate_jtc)
 from .kinematics import (
     _ASSEMBLED, _forward_point, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
     forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
@@ -330,37 +331,27 @@ def _check_reach_and_speed_cap(path, config):
 
 def _interpolation_error(motion, trajectory, config, per_segment=8):
     """Return the largest TCP deviation of JTC's quintic through ``trajectory``."""
-    segments = np.arange(trajectory.time_from_start.size - 1)
-    return float(_segment_deviations(motion, trajectory, config, segments, per_segment).max())
-
-
-def _segment_deviations(motion, trajectory, config, segments, per_segment):
-    """
-    Return the largest TCP deviation [m] (S,) of JTC's quintic on each of ``segments`` (S,).
-
-    Measured at ``per_segment`` even interior points of each segment, from the motion itself.
-    """
     times = trajectory.time_from_start
     fractions = np.arange(1, per_segment + 1) / (per_segment + 1.0)
-    t = (times[segments, None]
-         + (times[segments + 1] - times[segments])[:, None] * fractions).ravel()
+    t = (times[:-1, None] + np.diff(times)[:, None] * fractions).ravel()
     q, _, _ = quintic_interpolate(trajectory, t)
     tcp = forward_kinematics(q, config.geometry, name='interpolated q')
-    deviation = np.linalg.norm(tcp - motion.state_at(t)[0], axis=1)
-    return deviation.reshape(segments.size, per_segment).max(axis=1)
+    return float(np.linalg.norm(tcp - motion.state_at(t)[0], axis=1).max())
 
 
-def _mended(motion, trajectory, samples, config, knot_times):
+def _mended(motion, trajectory, samples, config, earlier_times):
     """
-    Return ``trajectory`` with the segments that added points made within the tolerance.
+    Return ``trajectory`` with the segments that its new points make within the tolerance.
 
     A point added inside a knot segment changes the quintics on both sides of it: closer to
     the motion as a rule, but not always (bench seed 11, pair 831: a point at a jerk step
     near the end of a 44 ms segment left a 40 ms one that deviates 120 um where the knots'
-    deviated 75 um, tolerance 100 um). Each segment not between two consecutive knots
-    (``knot_times``) is checked as the knot search checks its own (:data:`_CHECK_SAMPLES`
-    points, :data:`_CHECK_SHARE` of the tolerance) and, if it fails, gets a point at its
-    middle (the sample nearest to it), up to :data:`_MEND_HALVINGS` times.
+    deviated 75 um, tolerance 100 um). Each segment with an end not in ``earlier_times``
+    (the points before this round, whose segments were checked) is checked as the knot search
+    checks its own (:func:`segment_deviations`: :data:`_CHECK_SAMPLES` points,
+    :data:`_CHECK_SHARE` of the tolerance)
+    and, if it fails, gets a point at its middle (the sample nearest to it), up to
+    :data:`_MEND_HALVINGS` times.
 
     Returns
     -------
@@ -372,9 +363,10 @@ def _mended(motion, trajectory, samples, config, knot_times):
     accept = _CHECK_SHARE * config.knot_tolerance
     for halving in range(_MEND_HALVINGS + 1):
         times = trajectory.time_from_start
-        made = np.flatnonzero(~(np.isin(times[:-1], knot_times)
-                                & np.isin(times[1:], knot_times)))
-        deviations = _segment_deviations(motion, trajectory, config, made, _CHECK_SAMPLES)
+        made = np.flatnonzero(~(np.isin(times[:-1], earlier_times)
+                                & np.isin(times[1:], earlier_times)))
+        deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance,
+                                        _CHECK_SAMPLES)
         failed = made[deviations > accept]
         if failed.size == 0:
             return trajectory, float(deviations.max(initial=0.0))
@@ -702,10 +694,11 @@ def _joint_points(motion, config, bounds, samples=None):
     steps = None
     table = executed_table(trajectory, geometry)
     worst = table.max(axis=0) / bounds
-    knot_times = trajectory.time_from_start
-    # The points whose peaks need the least slow-down so far (the first of equals), and the
-    # largest deviation of their segments.
-    least = (_excess_factor(worst), trajectory, table, error)
+    # The largest deviation of the segments made so far (those a later round splits included:
+    # an upper bound), and the points whose peaks need the least slow-down so far (the first
+    # of equals) with theirs.
+    deviation = error
+    least = (_excess_factor(worst), trajectory, table, deviation)
     for _ in range(_KNOT_ROUNDS):
         times = trajectory.time_from_start
         # Points mend what the quintic adds to the motion, not what the motion itself has.
@@ -732,14 +725,15 @@ def _joint_points(motion, config, bounds, samples=None):
             halved = np.array(halved)
             added.extend(samples.states(0.5 * (times[halved] + times[halved + 1]),
                                         times[halved], times[halved + 1])[0])
-        trajectory, deviation = _mended(
+        trajectory, made = _mended(
             motion, _with_points(trajectory, samples, _spaced(times, added)), samples, config,
-            knot_times)
+            times)
+        deviation = max(deviation, made)
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
         excess = _excess_factor(ratios)
         if excess < least[0] and deviation <= _CHECK_SHARE * config.knot_tolerance:
-            least = (excess, trajectory, table, max(error, deviation))
+            least = (excess, trajectory, table, deviation)
         # When a round lowers no exceeded peak, only the slow-down that follows can.
         if not (ratios < worst)[worst > 1.0].any():
             break
