@@ -1036,9 +1036,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     # C-contiguous and writeable: the one array type _search_knots is compiled for.
     source = tuple(np.require(values, float, ('C', 'W')) for values in (
         samples.times, samples.q, samples.qdot, samples.qddot))
-    # Below the table's resolution the motion itself is evaluated at every check point.
-    table = (tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
-             if accept >= _PLANNED_TABLE_MIN_TOLERANCE else _NO_TABLE)
+    table = _planned_table(samples, accept)
     initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
     evaluated = _Evaluated()
     journal = np.empty(0)
@@ -1098,8 +1096,7 @@ def segment_deviations(samples, trajectory, segments, tolerance, check_samples=2
         trajectory.time_from_start, trajectory.positions, trajectory.velocities,
         trajectory.accelerations))
     geometry = _kernel_geometry(samples.geometry)[:5]
-    table = (tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
-             if _SAFETY * tolerance >= _PLANNED_TABLE_MIN_TOLERANCE else _NO_TABLE)
+    table = _planned_table(samples, _SAFETY * tolerance)
     planned = (np.empty(0), np.empty((0, 3)))
     while True:
         status, deviations, need = _deviations_of(knots, segments, table, planned, geometry,
@@ -1109,6 +1106,19 @@ def segment_deviations(samples, trajectory, segments, tolerance, check_samples=2
         # Below the table's resolution: the motion at the check times the kernel asked for.
         planned = _merged_rows(planned, (need[0], _checked_state_at(samples.motion,
                                                                     need[0])[0]))
+
+
+def _planned_table(samples, accept):
+    """
+    Return the planned table the segment checks read for errors up to ``accept`` [m].
+
+    :meth:`MotionSamples.planned_table` (C-contiguous and writeable: the one array type the
+    kernels are compiled for), or ``_NO_TABLE`` below its resolution, where the motion
+    itself is evaluated at every check point.
+    """
+    if accept < _PLANNED_TABLE_MIN_TOLERANCE:
+        return _NO_TABLE
+    return tuple(np.require(values, float, ('C', 'W')) for values in samples.planned_table())
 
 
 @kernel

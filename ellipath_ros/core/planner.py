@@ -34,7 +34,7 @@ from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
-    _fill_quintic, _polynomial, check_joint_limits, EXECUTED_KEYS, executed_table,
+    _fill_quintic, _polynomial, _SAFETY, check_joint_limits, EXECUTED_KEYS, executed_table,
     JointTrajectoryData, minimal_knots, MotionSamples, on_whole_nanoseconds,
     quintic_interpolate, quintic_positions, sample_joint_trajectory, segment_deviations,
     validate_jtc)
@@ -71,11 +71,8 @@ _EXECUTED_AIM = 0.999
 _JERK_STEP_SHARE = 0.1
 _KNOT_MIN_GAP = 1e-5
 _KNOT_ROUNDS = 8
-# A segment that added points made is checked as the knot search checks its own: on this many
-# interior points, accepted up to this share of the tolerance; one that fails is halved, up
-# to _MEND_HALVINGS times (see _mended).
-_CHECK_SAMPLES = 24
-_CHECK_SHARE = 0.95
+# A segment that added points made and that fails the knot search's own check is halved, up
+# to this many times (see _mended).
 _MEND_HALVINGS = 4
 # Below this share above the planned motion's peak, an executed peak is the motion's own.
 _QUINTIC_EXCESS = 1e-4
@@ -348,10 +345,9 @@ def _mended(motion, trajectory, samples, config, earlier_times):
     near the end of a 44 ms segment left a 40 ms one that deviates 120 um where the knots'
     deviated 75 um, tolerance 100 um). Each segment with an end not in ``earlier_times``
     (the points before this round, whose segments were checked) is checked as the knot search
-    checks its own (:func:`segment_deviations`: :data:`_CHECK_SAMPLES` points,
-    :data:`_CHECK_SHARE` of the tolerance)
-    and, if it fails, gets a point at its middle (the sample nearest to it), up to
-    :data:`_MEND_HALVINGS` times.
+    checks its own (:func:`segment_deviations`, accepted up to ``_SAFETY`` of the tolerance)
+    and, if it fails, gets a point at its middle (:func:`_middles`), up to ``_MEND_HALVINGS``
+    times.
 
     Returns
     -------
@@ -360,21 +356,30 @@ def _mended(motion, trajectory, samples, config, earlier_times):
         fails after the halvings).
 
     """
-    accept = _CHECK_SHARE * config.knot_tolerance
+    accept = _SAFETY * config.knot_tolerance
     for halving in range(_MEND_HALVINGS + 1):
         times = trajectory.time_from_start
         made = np.flatnonzero(~(np.isin(times[:-1], earlier_times)
                                 & np.isin(times[1:], earlier_times)))
-        deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance,
-                                        _CHECK_SAMPLES)
+        deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance)
         failed = made[deviations > accept]
         if failed.size == 0:
             return trajectory, float(deviations.max(initial=0.0))
         if halving == _MEND_HALVINGS:
             return trajectory, math.inf
-        middles = samples.states(0.5 * (times[failed] + times[failed + 1]), times[failed],
-                                 times[failed + 1])[0]
-        trajectory = _with_points(trajectory, samples, _spaced(times, middles))
+        trajectory = _with_points(trajectory, samples,
+                                  _spaced(times, _middles(samples, times, failed)))
+
+
+def _middles(samples, times, segments):
+    """
+    Return the times [s] of points at the middles of ``segments`` (S,) between ``times``.
+
+    The sample nearest to a middle if it lies in the middle half of its segment (its state is
+    known), else the middle itself (:meth:`MotionSamples.states`).
+    """
+    return samples.states(0.5 * (times[segments] + times[segments + 1]), times[segments],
+                          times[segments + 1])[0]
 
 
 def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None,
@@ -720,11 +725,8 @@ def _joint_points(motion, config, bounds, samples=None):
             else:
                 halved.append(index)
         if halved:
-            # The middle of a segment without a step: the sample nearest to it, if in the
-            # middle half of the segment (its state is known), else the middle itself.
-            halved = np.array(halved)
-            added.extend(samples.states(0.5 * (times[halved] + times[halved + 1]),
-                                        times[halved], times[halved + 1])[0])
+            # The middle of a segment without a step.
+            added.extend(_middles(samples, times, np.array(halved)))
         trajectory, made = _mended(
             motion, _with_points(trajectory, samples, _spaced(times, added)), samples, config,
             times)
@@ -732,7 +734,7 @@ def _joint_points(motion, config, bounds, samples=None):
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
         excess = _excess_factor(ratios)
-        if excess < least[0] and deviation <= _CHECK_SHARE * config.knot_tolerance:
+        if excess < least[0] and deviation <= _SAFETY * config.knot_tolerance:
             least = (excess, trajectory, table, deviation)
         # When a round lowers no exceeded peak, only the slow-down that follows can.
         if not (ratios < worst)[worst > 1.0].any():
