@@ -99,3 +99,37 @@ def test_default_samples_find_the_peaks_of_a_10_us_check(kind):
                              ('peak_jerk', jerk)):
             dense = float(np.linalg.norm(vectors, axis=1).max())
             assert dense * (1.0 - 2e-4) <= metrics[key] <= dense * (1.0 + 2e-4), key
+
+
+@pytest.mark.parametrize('join', ['g2', 'paper'])
+def test_compiled_default_samples_equal_the_array_formulas_bit_for_bit(join):
+    # The times of _piece_sample_times with ceil(width / period) steps per interval, the law's
+    # state as path_state gives it and each sample's interval as np.searchsorted finds it;
+    # also slowed down (path_state divides by the factor and its powers).
+    config = dataclasses.replace(PlannerConfig(), join=join)
+    for pick, place in random_pairs(6, seed=9):
+        timed = planned_motion(config, pick, place)
+        for factor in (1.0, 1.0123456789, 1.37):
+            motion = dataclasses.replace(timed.scaled(factor) if factor > 1.0 else timed)
+            bounds = motion_module._smooth_bounds(motion)
+            t = motion._norm_times(bounds)
+            period = max(motion_module._PIECE_PERIOD,
+                         motion.duration / motion_module._METRICS_SAMPLES)
+            counts = np.maximum(np.ceil(np.diff(bounds) / period), 2.0).astype(np.int64)
+            expected = np.minimum(motion_module._piece_sample_times(bounds, counts),
+                                  motion.duration)
+            assert np.array_equal(t, expected)
+            s, states, norms, peaks = motion_module._sampled(motion, t, bounds)
+            path_s, velocity, acceleration, jerk = motion.path_state(t)
+            assert np.array_equal(s, path_s)
+            assert all(np.array_equal(mine, theirs) for mine, theirs in zip(
+                states, motion.state_at(t)))
+            pieces = np.empty(t.size, np.int64)
+            rows = np.empty((4, t.size))
+            law = motion.law
+            motion_module._sorted_law_rows(
+                t, motion.duration, motion.time_scale, motion.time_scale ** 2,
+                motion.time_scale ** 3, law.times, law.s0, law.v0, law.a0, law.jerk,
+                bounds[1:-1].copy(), rows, pieces)
+            assert np.array_equal(pieces, np.searchsorted(bounds[1:-1], t, side='right'))
+            assert np.array_equal(rows, np.vstack((path_s, velocity, acceleration, jerk)))

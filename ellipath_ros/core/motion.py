@@ -627,12 +627,53 @@ def _piece_check_times(motion, bounds):
     Even steps across each interval of ``bounds`` (:func:`_smooth_bounds`), at most
     ``_PIECE_PERIOD`` apart (longer where the motion would need more than
     ``_METRICS_SAMPLES`` samples) and at least two, so that every interval has a sample
-    inside it for :func:`_refined_peaks`; both sides of every bound
-    (:func:`_piece_sample_times`).
+    inside it for :func:`_refined_peaks`; both sides of every bound (the times of
+    :func:`_piece_sample_times`, in one compiled pass: :func:`_even_piece_times`).
     """
-    period = max(_PIECE_PERIOD, motion.duration / _METRICS_SAMPLES)
-    counts = np.maximum(np.ceil(np.diff(bounds) / period), 2.0).astype(np.int64)
-    return np.minimum(_piece_sample_times(bounds, counts), motion.duration)
+    return _even_piece_times(np.ascontiguousarray(bounds, dtype=float),
+                             max(_PIECE_PERIOD, motion.duration / _METRICS_SAMPLES),
+                             float(motion.duration))
+
+
+@kernel
+def _even_piece_times(bounds, period, duration):
+    """
+    Return :func:`_piece_sample_times` of ``bounds`` (K + 1,), ceil(width / period) (>= 2) each.
+
+    The same floating-point operations in the same order, so the same times bit for bit,
+    each at most ``duration``.
+    """
+    intervals = bounds.size - 1
+    epsilon = 1e-9 * bounds[-1]
+    counts = np.empty(intervals, np.int64)
+    total = 2 * intervals
+    for interval in range(intervals):
+        counts[interval] = max(math.ceil((bounds[interval + 1] - bounds[interval]) / period), 2)
+        total += counts[interval] - 1
+    t = np.empty(total)
+    t[0] = bounds[0]
+    row = 1
+    for interval in range(intervals):
+        start, width, count = bounds[interval], bounds[interval + 1] - bounds[interval], counts[
+            interval]
+        if interval > 0:
+            t[row] = min(start + epsilon, bounds[-1])
+            row += 1
+        for step in range(1, count):
+            t[row] = start + width * (step / count)
+            row += 1
+        if interval < intervals - 1:
+            t[row] = max(bounds[interval + 1] - epsilon, 0.0)
+            row += 1
+    t[row] = bounds[-1]
+    # In order unless a piece is narrower than the offsets off its bounds.
+    for row in range(1, total):
+        if t[row] < t[row - 1]:
+            t.sort()
+            break
+    for row in range(total):
+        t[row] = min(t[row], duration)
+    return t
 
 
 def _sample_times(duration, period):
@@ -693,13 +734,55 @@ def _sampled(motion, t, bounds=None):
     (three floats), refined between the samples of each interval of ``bounds``
     (:func:`_smooth_bounds` when omitted; :func:`_refined_peaks`).
     """
-    s, v, a, j = motion.path_state(t)
-    states, norms = _cartesian_and_norms(motion.path, s, v, a, j)
     bounds = _smooth_bounds(motion) if bounds is None else bounds
-    pieces = np.searchsorted(bounds[1:-1], t, side='right')
+    law = motion.law
+    if isinstance(law, _JerkPieces):
+        # The times are the motion's own (sorted, within it): the law's state and each
+        # sample's interval in one compiled pass, as path_state and np.searchsorted give them.
+        t = np.ascontiguousarray(t, dtype=float)
+        rows, pieces = np.empty((4, t.size)), np.empty(t.size, np.int64)
+        factor = motion.time_scale
+        _sorted_law_rows(t, float(motion.duration), factor, factor ** 2, factor ** 3,
+                         law.times, law.s0, law.v0, law.a0, law.jerk,
+                         np.ascontiguousarray(bounds[1:-1], dtype=float), rows, pieces)
+        s, v, a, j = rows
+    else:
+        s, v, a, j = motion.path_state(t)
+        pieces = np.searchsorted(bounds[1:-1], t, side='right')
+    states, norms = _cartesian_and_norms(motion.path, s, v, a, j)
     peaks = np.empty(3)
     _refined_peaks(np.ascontiguousarray(t, dtype=float), pieces, norms, peaks)
     return s, states, norms, tuple(float(peak) for peak in peaks)
+
+
+@kernel
+def _sorted_law_rows(t, duration, factor, factor_2, factor_3, times, s0, v0, a0, jerk, inner,
+                     rows, pieces):
+    """
+    Fill ``rows`` (4, N) with :meth:`TimedMotion.path_state` at sorted ``t`` (N,), and ``pieces``.
+
+    The law is :class:`_JerkPieces`' arrays slowed down by ``factor`` (its square and cube
+    given, as path_state computes them); ``pieces`` (N,) holds each time's interval of the
+    bounds whose interior ones are ``inner`` (``np.searchsorted(inner, t, side='right')``).
+    Both searches walk along the sorted times: the same indices as a search per time, and
+    the same arithmetic as :func:`_piece_states`.
+    """
+    last = jerk.size - 1
+    piece, interval = 0, 0
+    for row in range(t.size):
+        x = min(max(t[row], 0.0), duration) / factor
+        while piece < times.size and times[piece] <= x:
+            piece += 1
+        index = min(max(piece - 1, 0), last)
+        x -= times[index]
+        j, a, v = jerk[index], a0[index], v0[index]
+        rows[0, row] = s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0))
+        rows[1, row] = (v + x * (a + x * j / 2.0)) / factor
+        rows[2, row] = (a + x * j) / factor_2
+        rows[3, row] = j / factor_3
+        while interval < inner.size and inner[interval] <= t[row]:
+            interval += 1
+        pieces[row] = interval
 
 
 @kernel
