@@ -299,8 +299,15 @@ def test_invalid_arguments():
     motion = motion_of('paper', 'time_optimal')
     with pytest.raises(InvalidInputError, match='^t: expected'):
         motion.state_at([motion.duration + 1e-3])
-    with pytest.raises(InvalidInputError, match='^t: expected'):
-        motion.path_state([math.nan])
+    for times in ([math.nan], [0.0, math.nan, 0.1], [math.inf], [-math.inf, 0.0], [[0.0, 0.1]],
+                  [-1e-6]):
+        with pytest.raises(InvalidInputError, match='^t: expected'):
+            motion.path_state(times)
+    # Within 1e-9 of the duration outside it: the state at the end it is taken to.
+    outside = [-1e-10 * motion.duration, motion.duration * (1.0 + 1e-10)]
+    for mine, ends in zip(motion.path_state(outside), motion.path_state([0.0, motion.duration])):
+        assert np.array_equal(mine, ends)
+    assert motion.path_state(np.zeros(0))[0].shape == (0,)
     with pytest.raises(InvalidInputError, match='^factor: expected'):
         motion.scaled(0.5)
     with pytest.raises(InvalidInputError, match='^sample_period: expected'):

@@ -296,14 +296,19 @@ class TimedMotion:
         """
         t = np.atleast_1d(np.asarray(t, dtype=float))
         tolerance = 1e-9 * self.duration
-        if t.ndim != 1 or not np.all(np.isfinite(t)) or np.any(t < -tolerance) or np.any(
-                t > self.duration + tolerance):
+        # Two reductions for every check: a NaN makes both NaN, and NaN fails the comparisons.
+        low, high = (float(t.min()), float(t.max())) if t.size else (0.0, 0.0)
+        if t.ndim != 1 or not (low >= -tolerance and high <= self.duration + tolerance):
             raise InvalidInputError(
                 f't: expected finite times of shape (N,) in [0, {self.duration:.9g}] s, got '
-                f'shape {t.shape}, range [{np.min(t) if t.size else 0.0:.9g}, '
-                f'{np.max(t) if t.size else 0.0:.9g}]')
+                f'shape {t.shape}, range [{low:.9g}, {high:.9g}]')
+        if low < 0.0 or high > self.duration:
+            t = np.clip(t, 0.0, self.duration)
         factor = self.time_scale
-        s, v, a, j = self.law.state(np.clip(t, 0.0, self.duration) / factor)
+        s, v, a, j = self.law.state(t / factor)
+        if factor == 1.0:
+            # Dividing by 1 changes no value: the law's own rows.
+            return s, v, a, j
         return s, v / factor, a / factor ** 2, j / factor ** 3
 
     def state_at(self, t):
@@ -452,7 +457,7 @@ class TimedMotion:
                                                    np.minimum(times + epsilon, self.duration))))[3]
             sizes = np.abs(jerk[times.size:] - jerk[:times.size])
         if marks.size and times.size:
-            apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+            apart = _farther_than(times, marks, epsilon)
             times, sizes = times[apart], sizes[apart]
         if marks.size:
             jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
@@ -719,10 +724,26 @@ def _smooth_bounds(motion):
     bounds = law.times * motion.time_scale
     marks = motion._mark_times()
     if marks.size:
-        apart = (np.abs(marks[:, None] - bounds[None, :]).min(axis=1)
-                 > _SAME_BOUND * motion.duration)
+        apart = _farther_than(marks, bounds, _SAME_BOUND * motion.duration)
         bounds = np.sort(np.concatenate((bounds, marks[apart])))
     return bounds
+
+
+@kernel
+def _farther_than(values, others, distance):
+    """
+    Return whether each of ``values`` (N,) is farther than ``distance`` from all ``others``.
+
+    As ``np.abs(values[:, None] - others[None, :]).min(axis=1) > distance`` (the same
+    differences), without the (N, M) arrays: a few marks against hundreds of bounds.
+    """
+    apart = np.empty(values.size, np.bool_)
+    for row in range(values.size):
+        nearest = np.inf
+        for other in others:
+            nearest = min(nearest, abs(values[row] - other))
+        apart[row] = nearest > distance
+    return apart
 
 
 def _sampled(motion, t, bounds=None):
