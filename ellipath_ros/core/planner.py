@@ -359,8 +359,8 @@ def _mended(motion, trajectory, samples, config, earlier_times):
     accept = _SAFETY * config.knot_tolerance
     for halving in range(_MEND_HALVINGS + 1):
         times = trajectory.time_from_start
-        made = np.flatnonzero(~(np.isin(times[:-1], earlier_times)
-                                & np.isin(times[1:], earlier_times)))
+        earlier = np.isin(times, earlier_times)
+        made = np.flatnonzero(~(earlier[:-1] & earlier[1:]))
         deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance)
         failed = made[deviations > accept]
         if failed.size == 0:
@@ -602,10 +602,14 @@ def _executed_inside(knots, positions, velocities, accelerations, time, c, segme
 
 
 def _spaced(times, added):
-    """Return ``times`` with those of ``added`` at least ``_KNOT_MIN_GAP`` from every other."""
+    """
+    Return the times of ``added`` at least ``_KNOT_MIN_GAP`` from ``times`` and each other.
+
+    Sorted; none of ``times`` (the points there already).
+    """
     candidates = np.unique(np.asarray(added, dtype=float))
     if candidates.size == 0:
-        return times
+        return candidates
     position = np.searchsorted(times, candidates)
     before = times[np.maximum(position - 1, 0)]
     after = times[np.minimum(position, times.size - 1)]
@@ -617,15 +621,14 @@ def _spaced(times, added):
         if candidate - last >= _KNOT_MIN_GAP:
             kept.append(candidate)
             last = candidate
-    return np.sort(np.concatenate((times, kept)))
+    return np.array(kept)
 
 
 def _with_points(trajectory, samples, times):
-    """Return ``trajectory`` with points at ``times`` (its own and new ones, sorted)."""
-    new = ~np.isin(times, trajectory.time_from_start)
-    if not new.any():
+    """Return ``trajectory`` with points added at ``times`` (sorted, none of its own)."""
+    if times.size == 0:
         return trajectory
-    added = samples.states(times[new])
+    added = samples.states(times)
     order = np.argsort(np.concatenate((trajectory.time_from_start, added[0])), kind='stable')
     return JointTrajectoryData(trajectory.joint_names, *(
         np.concatenate((old, new))[order] for old, new in zip(
@@ -715,18 +718,10 @@ def _joint_points(motion, config, bounds, samples=None):
             # Only a leg with a broken segment needs its jerk steps.
             step_times, step_sizes = motion.jerk_steps()
             steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
-        added, halved = [], []
-        for index in broken:
-            start, end = times[index], times[index + 1]
-            # A step closer than the gap to an end is at that point already.
-            inside = steps[(steps > start + _KNOT_MIN_GAP) & (steps < end - _KNOT_MIN_GAP)]
-            if inside.size:
-                added.extend(inside)
-            else:
-                halved.append(index)
-        if halved:
+        added, halved = _steps_inside(steps, times, broken)
+        if halved.size:
             # The middle of a segment without a step.
-            added.extend(_middles(samples, times, np.array(halved)))
+            added = np.concatenate((added, _middles(samples, times, halved)))
         trajectory, made = _mended(
             motion, _with_points(trajectory, samples, _spaced(times, added)), samples, config,
             times)
@@ -741,6 +736,27 @@ def _joint_points(motion, config, bounds, samples=None):
             break
         worst = ratios
     return least[1], least[3], least[2]
+
+
+def _steps_inside(steps, times, broken):
+    """
+    Return the jerk ``steps`` (sorted) inside the ``broken`` segments, and those without one.
+
+    The segments are those between ``times``; a step closer than ``_KNOT_MIN_GAP`` to an
+    end of its segment is at that point already. The same steps and segments as masks of
+    the steps per broken segment give, in one pass over the steps.
+    """
+    last = times.size - 2
+    # Each step's segment: the steps lie after the first point (t = 0); one at or after the
+    # last point (none is) would be outside the last segment.
+    segment = np.minimum(np.searchsorted(times, steps, side='right') - 1, last)
+    chosen = np.zeros(last + 1, bool)
+    chosen[broken] = True
+    inside = chosen[segment] & (steps > times[segment] + _KNOT_MIN_GAP) & (
+        steps < times[segment + 1] - _KNOT_MIN_GAP)
+    found = np.zeros(last + 1, bool)
+    found[segment[inside]] = True
+    return steps[inside], broken[~found[broken]]
 
 
 def _hold(trajectory, seconds):
