@@ -1803,44 +1803,51 @@ def executed_table(trajectory, geometry, previous=None):
         todo = ~same
         if same.all():
             return table
-    coefficients = np.ascontiguousarray(segment_polynomials(trajectory))
     failed_offset = np.empty(1)
-    failed = _peak_rows(coefficients, np.diff(times), todo, _EXECUTED_SAMPLES,
+    failed = _peak_rows(times, trajectory.positions, trajectory.velocities,
+                        trajectory.accelerations, todo, _EXECUTED_SAMPLES,
                         _EXECUTED_REFINE_SHARE, *_kernel_geometry(geometry), table,
                         failed_offset)
     if failed >= 0:
         # The error of the first pose that cannot be assembled, named as before.
-        q, qdot, qddot, qdddot = evaluate_segments(coefficients[failed:failed + 1],
-                                                   failed_offset.reshape(1, 1))
+        q, qdot, qddot, qdddot = evaluate_segments(
+            _quintic_coefficients(trajectory, np.array([failed]), np.array([failed + 1])),
+            failed_offset.reshape(1, 1))
         tcp_derivatives(q.reshape(-1, 3), qdot.reshape(-1, 3), qddot.reshape(-1, 3),
                         qdddot.reshape(-1, 3), geometry, name='interpolated q')
     return table
 
 
 @kernel
-def _peak_rows(coefficients, lengths, todo, samples, share, rx, ry, offset, upper, forearm_sq,
-               coplanar, table, failed_offset):
+def _peak_rows(times, positions, velocities, accelerations, todo, samples, share, rx, ry,
+               offset, upper, forearm_sq, coplanar, table, failed_offset):
     """
     Fill the rows ``todo`` of ``table`` (S, 5) with the executed peaks; return a failed one.
 
-    Each segment's quintic (``coefficients`` (S, 6, 3), ``lengths`` (S,)) gives its
-    exact joint peaks (:func:`_joint_extremes`); its TCP speed, acceleration and jerk
-    are evaluated at ``samples`` + 1 evenly spaced offsets, ends included, and each
-    quantity's largest sample is refined by the parabola through it and its neighbours
-    (the middle one of three at a segment end), evaluated at its vertex. Then, in every
-    segment (``todo`` or not) whose peak of a quantity is within ``share`` of the
+    Each segment's quintic (:func:`_fill_quintic` of the points ``times`` (S + 1,),
+    ``positions``, ``velocities``, ``accelerations`` (S + 1, 3), built where it is
+    evaluated) gives its exact joint peaks (:func:`_joint_extremes`); its TCP speed,
+    acceleration and jerk are evaluated at ``samples`` + 1 evenly spaced offsets, ends
+    included, and each quantity's largest sample is refined by the parabola through it and
+    its neighbours (the middle one of three at a segment end), evaluated at its vertex.
+    Then, in every segment (``todo`` or not) whose peak of a quantity is within ``share`` of the
     column's largest, every local maximum of that quantity's samples above that share
     (the _EXECUTED_CANDIDATES largest) is searched for the maximum between its two
     neighbours (:func:`_search_peak`). A pose that cannot be assembled (or is coplanar)
     stops the pass: its segment is returned, its offset in ``failed_offset[0]``; -1 when
     all are assembled.
     """
-    count = lengths.size
+    count = times.size - 1
+    lengths = np.empty(count)
+    for segment in range(count):
+        lengths[segment] = times[segment + 1] - times[segment]
     values = np.empty((count, samples + 1, 3))
+    c = np.empty((6, 3))
     for segment in range(count):
         if not todo[segment]:
             continue
-        c = coefficients[segment]
+        _fill_quintic(lengths[segment], positions, positions, velocities, velocities,
+                      accelerations, accelerations, segment, segment + 1, c)
         table[segment, 3], table[segment, 4] = _joint_extremes(c, lengths[segment])
         if not _sample_segment(c, lengths[segment], samples, rx, ry, offset, upper, forearm_sq,
                                coplanar, values[segment], failed_offset):
@@ -1861,7 +1868,8 @@ def _peak_rows(coefficients, lengths, todo, samples, share, rx, ry, offset, uppe
         if not (table[segment, 0] >= floors[0] or table[segment, 1] >= floors[1]
                 or table[segment, 2] >= floors[2]):
             continue
-        c = coefficients[segment]
+        _fill_quintic(lengths[segment], positions, positions, velocities, velocities,
+                      accelerations, accelerations, segment, segment + 1, c)
         step = lengths[segment] / samples
         if not (todo[segment] or _sample_segment(c, lengths[segment], samples, rx, ry, offset,
                                                  upper, forearm_sq, coplanar, values[segment],
