@@ -255,6 +255,9 @@ class TimedMotion:
     # That sample set itself, (t, position, velocity, acceleration, jerk): the planner derives
     # its knots, joint peaks and jerk steps from it instead of sampling the motion again.
     _states: tuple | None = field(default=None, init=False, repr=False)
+    # The path's marks in time (_mark_times), once: the samples' bounds and the jerk steps
+    # both read them. Not carried by scaled(): times x factor would round differently.
+    _marks: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         if not isinstance(self.path, PickPlacePath):
@@ -473,6 +476,14 @@ class TimedMotion:
 
     def _mark_times(self):
         """Return the times [s] at which the path's curvature rate steps (T1, T2, G2 ends)."""
+        if self._marks is None:
+            marks = self._marks_found()
+            marks.setflags(write=False)
+            object.__setattr__(self, '_marks', marks)
+        return self._marks
+
+    def _marks_found(self):
+        """Return :meth:`_mark_times`, found on the law."""
         path = self.path
         if path.bend is None:
             return np.zeros(0)
