@@ -1124,13 +1124,9 @@ def _planned_table(samples, accept):
 @kernel
 def _deviations_of(knots, segments, table, planned, geometry, fractions):
     """Return :func:`_segment_errors` of ``segments`` (S,) of ``knots``, none stopping."""
-    # The context of _search_knots, with what _segment_errors does not read left empty.
-    source = (np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)))
-    evaluated = (np.empty(0), np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
-                 np.empty((0, 3)))
-    record = (np.empty(0), np.zeros(1, np.int64), [np.empty(0)])
-    context = (source, evaluated, table, planned, geometry, fractions, record)
-    return _segment_errors(knots, segments, segments + 1, context, np.inf)
+    # Evaluated directly: no search reruns from here, so no journal keeps them.
+    return _evaluated_errors(knots, segments, segments + 1, table, planned, geometry,
+                             fractions, np.inf)
 
 
 # Outcomes of _search_knots: knots found; stopped for the motion's joint states at knot times
@@ -1287,13 +1283,22 @@ def _segment_errors(knots, start, end, context, limit):
     above ``limit``, not the largest). A run after a stop takes the errors of the stopped
     run from its journal (see :func:`_search_knots`), and adds the ones it evaluates.
     """
-    table, planned, geometry, fractions = context[2], context[3], context[4], context[5]
     journal, cursor, batches = context[6]
     if cursor[0] + start.size <= journal.size:
         cursor[0] += start.size
         return _FOUND, journal[cursor[0] - start.size:cursor[0]].copy(), _no_need()
     # Past the journal's end: no later batch is taken from it.
     cursor[0] = journal.size
+    status, errors, need = _evaluated_errors(knots, start, end, context[2], context[3],
+                                             context[4], context[5], limit)
+    if status == _FOUND:
+        batches.append(errors)
+    return status, errors, need
+
+
+@kernel
+def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, limit):
+    """:func:`_segment_errors` evaluated (the ``context``'s parts given), no journal."""
     rx, ry, offset, upper, forearm_sq = geometry
     times, positions, velocities, accelerations = knots
     count = fractions.size
@@ -1342,7 +1347,6 @@ def _segment_errors(knots, start, end, context, limit):
                 if worst > limit:
                     break
         errors[segment] = worst
-    batches.append(errors)
     return _FOUND, errors, _no_need()
 
 
