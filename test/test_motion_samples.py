@@ -19,8 +19,8 @@ import dataclasses
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.joint_trajectory import (
-    _interval_peaks, _nearest_samples, _NO_BOUNDS, _sample_peak_rows, executed_table, knots_at,
-    MotionSamples, quintic_positions)
+    _distinct_samples, _interval_peaks, _nearest_samples, _NO_BOUNDS, _sample_peak_rows,
+    executed_table, knots_at, MotionSamples, quintic_positions)
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics, joint_motion
 from ellipath_ros.core.planner import _slowed_points, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import time_motion
@@ -216,3 +216,18 @@ def test_nearest_samples_match_numpy():
         assert (flags == usable).all()
         # Some knots may move, some may not: both rules are exercised.
         assert 0 < flags.sum() < 80
+
+
+def test_planned_table_drops_the_earlier_of_samples_closer_than_the_tolerance():
+    rng = np.random.default_rng(4)
+    times = np.sort(np.concatenate((rng.uniform(0.0, 1.0, 200), [0.0, 0.0, 0.5, 0.5, 1.0])))
+    times[7] = times[6] + 1e-9
+    position, velocity = rng.normal(size=(times.size, 3)), rng.normal(size=(times.size, 3))
+    for same in (0.0, 1e-8, 2e-3):
+        keep = np.append(np.diff(times) > same, True)
+        keep[0] = True
+        table_times, rows, rates = _distinct_samples(times, position, velocity, same)
+        assert np.array_equal(table_times, times[keep])
+        assert np.array_equal(rows, position[keep].T) and np.array_equal(rates, velocity[keep].T)
+        # Repeats are dropped, and the first and last samples stay.
+        assert table_times.size < times.size and table_times[0] == 0.0 and table_times[-1] == 1.0

@@ -860,14 +860,36 @@ class MotionSamples:
             # Of two samples at the same time (both sides of a step), the later one. Stored as
             # coordinate rows (3, K): the products with the per-point basis (N,) then run
             # along the points, not across 3 coordinates.
-            keep = np.append(np.diff(self.times) > _SAME_TIME * self.duration, True)
-            keep[0] = True
-            # np.take of the indices: a boolean mask of (N, 3) rows, transposed, cost ten
-            # times as much.
-            index = np.flatnonzero(keep)
-            self._planned = (self.times[index], np.take(self.position.T, index, axis=1),
-                             np.take(self.velocity.T, index, axis=1))
+            self._planned = _distinct_samples(self.times, self.position, self.velocity,
+                                              _SAME_TIME * self.duration)
         return self._planned
+
+
+@kernel
+def _distinct_samples(times, position, velocity, same):
+    """
+    Return the samples' times (K,), positions and velocities (3, K) without near repeats.
+
+    A sample at most ``same`` before the next one is left out (of two at one time, the
+    later stays), except the first; the last always stays.
+    """
+    count = times.size
+    index = np.empty(count, np.int64)
+    kept = 0
+    for row in range(count):
+        if row == 0 or row == count - 1 or times[row + 1] - times[row] > same:
+            index[kept] = row
+            kept += 1
+    table_times = np.empty(kept)
+    rows = np.empty((3, kept))
+    rates = np.empty((3, kept))
+    for column in range(kept):
+        row = index[column]
+        table_times[column] = times[row]
+        for axis in range(3):
+            rows[axis, column] = position[row, axis]
+            rates[axis, column] = velocity[row, axis]
+    return table_times, rows, rates
 
 
 @kernel
