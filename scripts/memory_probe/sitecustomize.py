@@ -93,7 +93,8 @@ def _stack_pointers():
 
 
 def _anonymous_maps():
-    """Return [[start, size KiB, Rss KiB, permissions, what]] of the anonymous mappings with Rss.
+    """
+    Return [[start, size KiB, Rss KiB, permissions, what]] of the anonymous mappings with Rss.
 
     ``what`` names a thread whose stack pointer lies in the mapping, ``arena?`` for a mapping
     aligned as glibc aligns its non-main arenas' heaps (64 MiB), else ''.
