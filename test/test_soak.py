@@ -27,6 +27,8 @@ import sys
 
 from ellipath_ros.node import MALLOC_ARENA_MAX
 from ellipath_ros.node import MALLOC_MMAP_THRESHOLD
+from ellipath_ros.node import NUMPY_CACHE_BYTES
+from ellipath_ros.node import NUMPY_CACHE_DEPTH
 import pytest
 
 ROS_DOMAIN_OFFSET = 7  # see conftest.py
@@ -171,6 +173,47 @@ def test_the_node_limits_glibcs_arenas_and_fixes_its_mmap_threshold():
     assert not policy
     assert new_arenas >= 6 - 1, (arenas, new_arenas)
     assert not mapped, 'glibc raised its threshold after the larger block was freed'
+
+
+# Run in a process of its own: glibc's memory in use [bytes] grown by arrays of every size that
+# NumPy's small-block cache holds, made and freed NUMPY_CACHE_DEPTH at a time, with or without
+# fill_numpy_cache() first.
+NUMPY_CACHE_PROBE = r"""
+import ctypes, sys
+import numpy as np
+from ellipath_ros.node import fill_numpy_cache, NUMPY_CACHE_BYTES, NUMPY_CACHE_DEPTH
+class Mallinfo(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_size_t) for name in (
+        'arena', 'ordblks', 'smblks', 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks',
+        'fordblks', 'keepcost')]
+mallinfo2 = ctypes.CDLL(None).mallinfo2
+mallinfo2.restype = Mallinfo
+if sys.argv[1] == 'fill':
+    fill_numpy_cache()
+before = mallinfo2().uordblks
+for size in range(1, NUMPY_CACHE_BYTES):
+    held = [np.empty(size, dtype=np.uint8) for _ in range(NUMPY_CACHE_DEPTH)]
+    del held
+print(mallinfo2().uordblks - before)
+"""
+
+
+def numpy_cache_growth(fill):
+    """Run NUMPY_CACHE_PROBE; return the growth of the memory in use [bytes]."""
+    output = subprocess.run([sys.executable, '-c', NUMPY_CACHE_PROBE, 'fill' if fill else 'no'],
+                            check=True, capture_output=True, text=True, timeout=60).stdout
+    return int(output)
+
+
+def test_the_node_fills_numpys_small_block_cache_before_planning():
+    if not os.confstr('CS_GNU_LIBC_VERSION'):
+        pytest.skip('glibc only: mallinfo2 gives the memory in use')
+    # Without the fill, each new size stays cached after its arrays are freed: the memory in
+    # use grows by what the cache holds (7 blocks of each size below 1 KiB: about 3.6 MB).
+    cache_bytes = NUMPY_CACHE_DEPTH * NUMPY_CACHE_BYTES * (NUMPY_CACHE_BYTES - 1) // 2
+    assert numpy_cache_growth(fill=False) > cache_bytes // 2
+    # Filled first, the same arrays reuse the cached blocks: no growth beyond noise.
+    assert numpy_cache_growth(fill=True) < cache_bytes // 50
 
 
 @pytest.fixture(scope='module')

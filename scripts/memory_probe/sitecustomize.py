@@ -76,6 +76,50 @@ def _resident_by_kind():
     return kinds
 
 
+def _stack_pointers():
+    """Return {thread name: stack pointer} of this process's blocked threads (task/*/syscall)."""
+    pointers = {}
+    for task in os.listdir('/proc/self/task'):
+        try:
+            with open(f'/proc/self/task/{task}/comm') as comm:
+                name = f'{comm.read().strip()}:{task}'
+            with open(f'/proc/self/task/{task}/syscall') as syscall:
+                fields = syscall.read().split()
+        except OSError:
+            continue
+        if len(fields) >= 3 and fields[0] != 'running':
+            pointers[name] = int(fields[-2], 16)
+    return pointers
+
+
+def _anonymous_maps():
+    """
+    Return [[start, size KiB, Rss KiB, permissions, what]] of the anonymous mappings with Rss.
+
+    ``what`` names a thread whose stack pointer lies in the mapping, ``arena?`` for a mapping
+    aligned as glibc aligns its non-main arenas' heaps (64 MiB), else ''.
+    """
+    pointers = _stack_pointers()
+    maps = []
+    current = None
+    with open('/proc/self/smaps') as smaps:
+        for line in smaps:
+            fields = line.split()
+            if '-' in fields[0] and not fields[0].endswith(':'):
+                current = None
+                if len(fields) <= 5:
+                    start, end = (int(value, 16) for value in fields[0].split('-'))
+                    what = ','.join(name for name, pointer in pointers.items()
+                                    if start <= pointer < end)
+                    if not what and start % (64 << 20) == 0:
+                        what = 'arena?'
+                    current = [hex(start), (end - start) // 1024, 0, fields[1], what]
+                    maps.append(current)
+            elif fields[0] == 'Rss:' and current is not None:
+                current[2] = int(fields[1])
+    return [row for row in maps if row[2]]
+
+
 def _numba_live():
     """Return numba's runtime allocations and meminfos still live, if it counts them."""
     runtime = sys.modules.get('numba.core.runtime')
@@ -90,7 +134,9 @@ def _sample(mallinfo2, started):
     return {'t': round(time.monotonic() - started), 'resident_kib': _resident_by_kind(),
             'in_use_kib': info.uordblks // 1024, 'kept_kib': info.fordblks // 1024,
             'mapped_kib': info.hblkhd // 1024, 'python_blocks': sys.getallocatedblocks(),
-            'threads': len(os.listdir('/proc/self/task')), 'numba_live': _numba_live()}
+            'threads': len(os.listdir('/proc/self/task')), 'numba_live': _numba_live(),
+            'anonymous_maps': _anonymous_maps() if os.environ.get(
+                'ELLIPATH_MEMORY_PROBE_MAPS') == '1' else None}
 
 
 def _traced_growth(snapshot, first):
