@@ -108,7 +108,7 @@ def _forward_scan(path, forget_readings):
     while True:
         if forget_readings:
             scan.info[_READ] = 0
-        if _advance(planner.forward.parts(), scan.parts(), True) != _ADVANCED:
+        if _advance(*planner.forward.parts(), *scan.parts(), True) != _ADVANCED:
             return scan
 
 

@@ -335,7 +335,7 @@ def _until_level_off(v, a, jerk, h, speed, level):
     return low
 
 
-@kernel
+@kernel(inline=True)
 def _step(table, constants, factors, states, info, floats):
     """
     Take one step of the scan from its last state: 0, or why it cannot (_SPEED, _ACCEL).
@@ -525,17 +525,18 @@ def _step(table, constants, factors, states, info, floats):
     return 0
 
 
-@kernel
-def _advance(scanner, scan, back_up):
+@kernel(inline=True)
+def _advance(table, constants, factor, budget, states, info, floats, back_up):
     """
-    Take one step of ``scan``: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
+    Take one step of a scan: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
 
-    Where the acceleration bound falls faster than the jerk can follow, the
-    scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target over
-    the stretch (lower again on repeated trouble), unless ``back_up`` is False.
+    The scanner's arrays (table, constants, factor, budget), then the scan's
+    (states, info, floats), each passed on its own: a kernel looping over
+    steps unpacks its tuples once. Where the acceleration bound falls faster
+    than the jerk can follow, the scan backs up ``_BACK_UP_STEPS`` and lowers
+    its acceleration target over the stretch (lower again on repeated
+    trouble), unless ``back_up`` is False.
     """
-    table, constants, factor, budget = scanner
-    states, info, floats = scan
     if info[_STATUS] != _LIVE:
         return _STOPPED
     count = info[_COUNT]
@@ -572,8 +573,10 @@ def _advance(scanner, scan, back_up):
 @kernel
 def _run(scanner, scan):
     """Advance ``scan`` until it stops: _STOPPED, or _OUT_OF_STEPS."""
+    table, constants, factor, budget = scanner
+    states, info, floats = scan
     while True:
-        done = _advance(scanner, scan, True)
+        done = _advance(table, constants, factor, budget, states, info, floats, True)
         if done != _ADVANCED:
             return done
 
