@@ -147,7 +147,8 @@ def test_compiled_kernels_plan_what_their_plain_python_plans_bit_for_bit(
     limits = CartesianLimits()
     compiled = optimal_profile._optimal_motion(path, limits, cap)
     kernels = {**_kernels(arc_scan), **_kernels(optimal_profile)}
-    assert {'_step', '_advance', '_scan_both', '_crossing', '_piece_check'} <= set(kernels)
+    assert {'_advance', '_stop_or_back_up', '_scan_both', '_crossing',
+            '_piece_check'} <= set(kernels)
     steps = []
     scanner_init = arc_scan._Scanner.__init__
 
