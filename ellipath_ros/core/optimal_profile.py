@@ -135,9 +135,10 @@ class _ArcPlanner:
         # scans level off on a stair and cruise, and two scans cruising on one stair meet.
         cells = np.full(intervals, math.inf)
         if speed_cap is not None:
-            values = _SPEED_MARGIN * _cap_values(speed_cap, path.segment_lengths[0] + grid)
-            lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
-            cells = np.repeat(lowest, _CAP_STAIR)
+            # A C-contiguous, writable copy: the one array type the kernel is compiled for (a
+            # cap may answer with any view).
+            values = np.array(_cap_values(speed_cap, path.segment_lengths[0] + grid))
+            _cap_stairs(values, _SPEED_MARGIN, _CAP_STAIR, cells)
         self.grid = grid
         forward, backward = _arc_tables(kappa, kappa_s, cells)
         cell = self.length / (len(kappa) - 1)
@@ -534,6 +535,22 @@ def _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s):
                          + kappa_t[below], 0.0)
         kappa_s[row] = ((kappa_s_t[below + 1] - kappa_s_t[below]) / step * offset
                         + kappa_s_t[below])
+
+
+@kernel
+def _cap_stairs(values, margin, stair, cells):
+    """
+    Fill ``cells`` (M - 1,) with the speed cap as stairs of ``stair`` cells (M - 1 a multiple).
+
+    Each stair is ``margin`` times the lowest of the cap ``values`` (M,) at
+    the grid points its cells span (both ends of each); the values are
+    positive and finite (:func:`~ellipath_ros.core.limits._cap_values`).
+    """
+    for first in range(0, cells.size, stair):
+        lowest = margin * values[first]
+        for index in range(first + 1, first + stair + 1):
+            lowest = _py_min(lowest, margin * values[index])
+        cells[first:first + stair] = lowest
 
 
 @kernel
