@@ -108,7 +108,7 @@ def _forward_scan(path, forget_readings):
     while True:
         if forget_readings:
             scan.info[_READ] = 0
-        if _advance(planner.forward.parts(), scan.parts(), True) != _ADVANCED:
+        if _advance(*planner.forward.parts(), *scan.parts(), True) != _ADVANCED:
             return scan
 
 
@@ -147,7 +147,8 @@ def test_compiled_kernels_plan_what_their_plain_python_plans_bit_for_bit(
     limits = CartesianLimits()
     compiled = optimal_profile._optimal_motion(path, limits, cap)
     kernels = {**_kernels(arc_scan), **_kernels(optimal_profile)}
-    assert {'_step', '_advance', '_scan_both', '_crossing', '_piece_check'} <= set(kernels)
+    assert {'_advance', '_stop_or_back_up', '_scan_both', '_crossing',
+            '_piece_check'} <= set(kernels)
     steps = []
     scanner_init = arc_scan._Scanner.__init__
 
@@ -217,3 +218,16 @@ def test_a_bench_leg_whose_join_failed_at_the_crossing_is_timed_by_the_scans(
     motion = optimal_profile._optimal_motion(path, limits, cap)
     assert not fallbacks
     assert motion.duration < 2.0 * _least_time(path.length, limits)
+
+
+def test_cap_stairs_are_the_lowest_cap_each_stair_spans():
+    # The stairs' kernel against NumPy's form of the same: each cell's lowest end, then each
+    # stair's lowest cell, bit for bit.
+    rng = np.random.default_rng(3)
+    values = rng.uniform(0.2, 3.0, 2049)
+    cells = np.full(2048, math.inf)
+    optimal_profile._cap_stairs(values, 0.999, 8, cells)
+    scaled = 0.999 * values
+    lowest = np.minimum(scaled[:-1], scaled[1:]).reshape(-1, 8).min(axis=1)
+    assert cells.tobytes() == np.repeat(lowest, 8).tobytes()
+    assert cells[8] == 0.999 * values[8:17].min() and np.isfinite(cells).all()

@@ -335,25 +335,40 @@ def _until_level_off(v, a, jerk, h, speed, level):
     return low
 
 
-@kernel
-def _step(table, constants, factors, states, info, floats):
+@kernel(inline=True)
+def _advance(table, constants, factor, budget, states, info, floats, back_up):
     """
-    Take one step of the scan from its last state: 0, or why it cannot (_SPEED, _ACCEL).
+    Take one step of a scan: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
 
-    The step takes the largest jerk within the jerk norm at the state whose
-    end state stays below the acceleration target there (see the comment in
-    the loop), levels off before the speed limit ahead, and is legal at its
-    end (else the largest legal jerk, bisected towards the lowest). The new
-    state is appended with the table's reading there, which the next step
-    starts from.
+    The scanner's arrays (table, constants, factor, budget), then the scan's
+    (states, info, floats), each passed on its own: a kernel looping over
+    steps unpacks its tuples once, and the step is this kernel's own code
+    (each array a kernel takes costs reference counting per call, or per
+    inlined call). The step takes the largest jerk within the jerk norm at
+    the state whose end state stays below the acceleration target there (see
+    the comment in the loop), levels off before the speed limit ahead, and is
+    legal at its end (else the largest legal jerk, bisected towards the
+    lowest). The new state is appended with the table's reading there, which
+    the next step starts from. A step that cannot be taken stops the scan or
+    backs it up (:func:`_stop_or_back_up`).
     """
+    if info[_STATUS] != _LIVE:
+        return _STOPPED
+    count = info[_COUNT]
+    if states[1, count - 1] >= floats[_END_AT]:
+        info[_STATUS] = _END
+        return _STOPPED
+    budget[0] -= 1
+    # A scan holds at most the budget's steps (see _Scanner.scan): the capacity test only
+    # guards the arrays.
+    if budget[0] < 0 or count >= states.shape[1]:
+        return _OUT_OF_STEPS
     cell, speed = constants[_CELL], constants[_SPEED_TARGET]
     accel_limit, jerk_limit = constants[_ACCEL_TARGET], constants[_JERK_TARGET]
     accel_squared, jerk_squared = constants[_ACCEL_SQUARED], constants[_JERK_SQUARED]
     last = table.shape[1] - 2
     # The factors' last index (they cover the table's points and one beyond).
     last_factor = table.shape[1]
-    count = info[_COUNT]
     if info[_READ] == 0:
         s, v, a = states[1, count - 1], states[2, count - 1], states[3, count - 1]
         kappa, kappa_s, cap = _table_at(table, cell, s)
@@ -362,7 +377,7 @@ def _step(table, constants, factors, states, info, floats):
         v3 = v * v * v
         normal = kappa_s * v3 + 3.0 * kappa * v * a
         if normal >= jerk_limit or -normal >= jerk_limit:
-            return _SPEED
+            return _stop_or_back_up(_SPEED, constants, factor, states, info, back_up)
         middle, room = kappa * kappa * v3, math.sqrt(jerk_squared - normal * normal)
     else:
         # The previous step read the table at this state (and found its jerk range).
@@ -372,7 +387,7 @@ def _step(table, constants, factors, states, info, floats):
     if cap < speed:
         speed = cap
     if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
-        return _SPEED
+        return _stop_or_back_up(_SPEED, constants, factor, states, info, back_up)
     lowest, highest = middle - room, middle + room
     h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
     if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
@@ -457,15 +472,16 @@ def _step(table, constants, factors, states, info, floats):
                     bound = (-share - change) / divisor
                     if bound > floor:
                         floor = bound
-                factor = factors[0 if cell_index < 0 else last_factor
-                                 if cell_index > last_factor else cell_index]
-                target = (factor * target if target > 0.0
-                          else target - (1.0 - factor) * accel_limit)
+                target_share = factor[0 if cell_index < 0 else last_factor
+                                      if cell_index > last_factor else cell_index]
+                target = (target_share * target if target > 0.0
+                          else target - (1.0 - target_share) * accel_limit)
                 has_target = target >= floor
             if not has_target:
                 # Too fast at the step's end: try less jerk (down to the lowest).
                 if jerk <= lowest + 1e-9:
-                    return _SPEED
+                    return _stop_or_back_up(_SPEED, constants, factor, states, info,
+                                            back_up)
                 jerk = 0.5 * (jerk + lowest)
                 continue
             if a + h_jerk <= target + 1e-12:
@@ -484,7 +500,8 @@ def _step(table, constants, factors, states, info, floats):
             jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
     if not jerk >= lowest - 1e-9:
         # Not accelerating, the speed itself is too high for what follows.
-        return _ACCEL if a > 1e-9 else _SPEED
+        return _stop_or_back_up(_ACCEL if a > 1e-9 else _SPEED, constants, factor, states,
+                                info, back_up)
     # The jerk must be legal at the step's end too; if it is not, the largest legal one
     # in [lowest, jerk] is bisected for (12 halvings).
     low, high, legal, trial = lowest, jerk, False, jerk
@@ -515,46 +532,33 @@ def _step(table, constants, factors, states, info, floats):
         high = trial
         trial = 0.5 * (low + high)
     if not legal:
-        return _ACCEL if a > 1e-9 else _SPEED
+        return _stop_or_back_up(_ACCEL if a > 1e-9 else _SPEED, constants, factor, states,
+                                info, back_up)
     states[0, count] = states[0, count - 1] + h
     states[1, count], states[2, count], states[3, count] = (
         floats[_READING], floats[_READING + 1], floats[_READING + 2])
     states[4, count - 1] = legal_jerk
     info[_COUNT] = count + 1
     info[_READ] = 1
-    return 0
+    return _ADVANCED
 
 
 @kernel
-def _advance(scanner, scan, back_up):
+def _stop_or_back_up(failure, constants, factor, states, info, back_up):
     """
-    Take one step of ``scan``: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
+    Stop a scan whose step failed (``failure``: _SPEED or _ACCEL), or back it up.
 
-    Where the acceleration bound falls faster than the jerk can follow, the
+    Returns _STOPPED (the status says why) or _ADVANCED. Where the
+    acceleration bound falls faster than the jerk can follow (_ACCEL), the
     scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target over
-    the stretch (lower again on repeated trouble), unless ``back_up`` is False.
+    the stretch (lower again on repeated trouble), unless ``back_up`` is
+    False or it did so ``_BACK_UP_LIMIT`` times already.
     """
-    table, constants, factor, budget = scanner
-    states, info, floats = scan
-    if info[_STATUS] != _LIVE:
-        return _STOPPED
-    count = info[_COUNT]
-    if states[1, count - 1] >= floats[_END_AT]:
-        info[_STATUS] = _END
-        return _STOPPED
-    budget[0] -= 1
-    # A scan holds at most the budget's steps (see _Scanner.scan): the capacity test only
-    # guards the arrays.
-    if budget[0] < 0 or count >= states.shape[1]:
-        return _OUT_OF_STEPS
-    failure = _step(table, constants, factor, states, info, floats)
-    if failure == 0:
-        return _ADVANCED
     if failure == _SPEED or info[_FAILURES] >= _BACK_UP_LIMIT or not back_up:
         info[_STATUS] = failure
         return _STOPPED
     info[_FAILURES] += 1
-    last = count - 1
+    last = info[_COUNT] - 1
     first = max(0, last - _BACK_UP_STEPS)
     cell = constants[_CELL]
     low = max(int(states[1, first] / cell), 0)
@@ -572,8 +576,10 @@ def _advance(scanner, scan, back_up):
 @kernel
 def _run(scanner, scan):
     """Advance ``scan`` until it stops: _STOPPED, or _OUT_OF_STEPS."""
+    table, constants, factor, budget = scanner
+    states, info, floats = scan
     while True:
-        done = _advance(scanner, scan, True)
+        done = _advance(table, constants, factor, budget, states, info, floats, True)
         if done != _ADVANCED:
             return done
 

@@ -62,22 +62,35 @@ _WARM_UP_REJECTED = (((0.14, 0.08, -0.8), (-0.3, 0.0, -0.9), (0.18, -0.08, -0.83
 _WARM = []
 
 
-def kernel(function):
+def kernel(function=None, *, inline=False):
     """
     Compile ``function`` in nopython mode, cached on disk, without the GIL.
+
+    Used bare (``@kernel``) or with options (``@kernel(inline=True)``).
 
     Parameters
     ----------
     function : callable
         Numeric code on floats, ints and NumPy arrays (numba's nopython subset).
+    inline : bool
+        Whether kernels calling it get its body inlined (numba's ``inline='always'``,
+        before typing) instead of a call: for the small steps a kernel's loop calls hundreds
+        of times per plan, where a call (its arguments' reference counts, its error status)
+        costs as much as the step. Called from Python it is compiled as any kernel; a kernel
+        that inlines it holds a copy of its body (in numba's cache too, as it holds the code
+        of every kernel it calls).
 
     Returns
     -------
-    numba.core.registry.CPUDispatcher
-        The compiled function; it compiles on its first call for each argument type.
+    numba.core.registry.CPUDispatcher or callable
+        The compiled function (it compiles on its first call for each argument type), or,
+        without ``function``, the decorator that makes it.
 
     """
-    return numba.njit(cache=True, nogil=True)(function)
+    options = {'cache': True, 'nogil': True, 'inline': 'always' if inline else 'never'}
+    if function is None:
+        return numba.njit(**options)
+    return numba.njit(**options)(function)
 
 
 def warm_up():

@@ -135,9 +135,10 @@ class _ArcPlanner:
         # scans level off on a stair and cruise, and two scans cruising on one stair meet.
         cells = np.full(intervals, math.inf)
         if speed_cap is not None:
-            values = _SPEED_MARGIN * _cap_values(speed_cap, path.segment_lengths[0] + grid)
-            lowest = np.minimum(values[:-1], values[1:]).reshape(-1, _CAP_STAIR).min(axis=1)
-            cells = np.repeat(lowest, _CAP_STAIR)
+            # A C-contiguous, writable copy: the one array type the kernel is compiled for (a
+            # cap may answer with any view).
+            values = np.array(_cap_values(speed_cap, path.segment_lengths[0] + grid))
+            _cap_stairs(values, _SPEED_MARGIN, _CAP_STAIR, cells)
         self.grid = grid
         forward, backward = _arc_tables(kappa, kappa_s, cells)
         cell = self.length / (len(kappa) - 1)
@@ -537,6 +538,22 @@ def _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s):
 
 
 @kernel
+def _cap_stairs(values, margin, stair, cells):
+    """
+    Fill ``cells`` (M - 1,) with the speed cap as stairs of ``stair`` cells (M - 1 a multiple).
+
+    Each stair is ``margin`` times the lowest of the cap ``values`` (M,) at
+    the grid points its cells span (both ends of each); the values are
+    positive and finite (:func:`~ellipath_ros.core.limits._cap_values`).
+    """
+    for first in range(0, cells.size, stair):
+        lowest = margin * values[first]
+        for index in range(first + 1, first + stair + 1):
+            lowest = _py_min(lowest, margin * values[index])
+        cells[first:first + stair] = lowest
+
+
+@kernel
 def _cruise_speeds(kappa, kappa_s, cells, speed, accel, jerk, out):
     """
     Fill ``out`` (M,) with the speed at which s'' = 0 keeps ``accel`` and ``jerk``.
@@ -641,18 +658,27 @@ def _scan_both(forward_scanner, backward_scanner, forward, backward, length, sea
     ``length`` [m] is the arc's. (One kernel for both uses: each kernel
     Python calls is compiled, or loaded from the cache, on its own.)
     """
-    forward_states, forward_info, _ = forward
-    backward_states, backward_info, _ = backward
+    # Unpacked once: a kernel's array variables cost reference counting where they are made.
+    forward_table, forward_constants, forward_factor, forward_budget = forward_scanner
+    backward_table, backward_constants, backward_factor, backward_budget = backward_scanner
+    forward_states, forward_info, forward_floats = forward
+    backward_states, backward_info, backward_floats = backward
     while search and (forward_info[_STATUS] == _LIVE or backward_info[_STATUS] == _LIVE):
         if forward_info[_STATUS] == _LIVE and (
                 backward_info[_STATUS] != _LIVE
                 or forward_states[2, forward_info[_COUNT] - 1]
                 <= backward_states[2, backward_info[_COUNT] - 1]):
-            done, crossed = _step_towards(forward_scanner, forward, backward_states,
-                                          backward_info[_COUNT], length)
+            done = _advance(forward_table, forward_constants, forward_factor, forward_budget,
+                            forward_states, forward_info, forward_floats, True)
+            crossed = done == _ADVANCED and _tops(forward_states, forward_info[_COUNT],
+                                                  backward_states, backward_info[_COUNT],
+                                                  length)
         else:
-            done, crossed = _step_towards(backward_scanner, backward, forward_states,
-                                          forward_info[_COUNT], length)
+            done = _advance(backward_table, backward_constants, backward_factor,
+                            backward_budget, backward_states, backward_info, backward_floats,
+                            True)
+            crossed = done == _ADVANCED and _tops(backward_states, backward_info[_COUNT],
+                                                  forward_states, forward_info[_COUNT], length)
         if done == _OUT_OF_STEPS:
             return done
         if crossed:
@@ -754,32 +780,35 @@ def _joined_rows(head, middle, tail):
     return rows
 
 
-@kernel
-def _step_towards(scanner, scan, other, other_count, length):
+@kernel(inline=True)
+def _tops(states, count, other, other_count, length):
     """
-    Advance ``scan`` once: return (what _advance did, whether it now tops the other scan).
+    Return whether a scan's last state tops the other scan (its speed at the same place).
 
-    ``other`` holds the other scan's states (the first ``other_count``). The
-    speed curves cannot cross before the scans overlap; where they do, the
-    scan tops the other where its speed reaches the other's at the same place.
+    ``states`` and ``other`` hold the scans' states (the first ``count`` and
+    ``other_count``). The speed curves cannot cross before the scans overlap.
     """
-    done = _advance(scanner, scan, True)
-    states, info, _ = scan
-    last = info[_COUNT] - 1
-    crossed = False
-    if done == _ADVANCED and length - states[1, last] < other[1, other_count - 1]:
+    last = count - 1
+    if length - states[1, last] < other[1, other_count - 1]:
         found, speed = _speed_at(other, other_count, length - states[1, last])
-        crossed = found and states[2, last] >= speed * (1.0 - 1e-12)
-    return done, crossed
+        return found and states[2, last] >= speed * (1.0 - 1e-12)
+    return False
 
 
 @kernel
 def _add_room(forward_scanner, backward_scanner, forward, backward, steps):
     """Advance both scans ``steps`` past their crossing (no backing up past it)."""
+    forward_table, forward_constants, forward_factor, forward_budget = forward_scanner
+    backward_table, backward_constants, backward_factor, backward_budget = backward_scanner
+    forward_states, forward_info, forward_floats = forward
+    backward_states, backward_info, backward_floats = backward
     for _ in range(steps):
-        if _advance(forward_scanner, forward, False) == _OUT_OF_STEPS:
+        if _advance(forward_table, forward_constants, forward_factor, forward_budget,
+                    forward_states, forward_info, forward_floats, False) == _OUT_OF_STEPS:
             return _OUT_OF_STEPS
-        if _advance(backward_scanner, backward, False) == _OUT_OF_STEPS:
+        if _advance(backward_table, backward_constants, backward_factor, backward_budget,
+                    backward_states, backward_info, backward_floats,
+                    False) == _OUT_OF_STEPS:
             return _OUT_OF_STEPS
     return _STOPPED
 

@@ -60,16 +60,11 @@ def _ruckig_solution(start, target, speed, accel, jerk):
     if result != Result.Working:
         return None, f'Ruckig returned {result.name}'
     profile = trajectory.profiles[0][0]
-    rows = []
     brake = profile.brake
-    for index in range(2):
-        if brake.t[index] > 0.0:
-            rows.append((brake.t[index], brake.p[index], brake.v[index], brake.a[index],
-                         brake.j[index]))
-    for index in range(7):
-        if profile.t[index] > 0.0:
-            rows.append((profile.t[index], profile.p[index], profile.v[index],
-                         profile.a[index], profile.j[index]))
+    # Each attribute read converts the whole array to a list: read once, zipped per phase (the
+    # brake's two, then the profile's seven; zip stops at the durations, the shortest).
+    rows = [row for phases in (brake, profile)
+            for row in zip(phases.t, phases.p, phases.v, phases.a, phases.j) if row[0] > 0.0]
     for duration, _, v, a, j in rows:
         # Smallest speed on the piece: at its ends or where s'' = 0 inside it.
         ends = [v, v + a * duration + 0.5 * j * duration ** 2]
