@@ -118,6 +118,18 @@ def test_executed_peaks_are_ratios_to_the_limits(report):
     assert executed['speed'] <= 1.06
 
 
+def test_message_sizes_are_those_of_the_planned_requests(report):
+    result, _ = report
+    messages = result['messages']
+    assert messages['n'] == result['pairs']['planned']
+    for name in ('points', 'bytes'):
+        assert 0 < messages[name]['p50'] <= messages[name]['p99'] <= messages[name]['max']
+    # A request holds both legs (at least two points each) and the CDR header and names.
+    assert messages['points']['p50'] >= 4
+    assert messages['bytes']['max'] > 48 * messages['points']['max']
+    assert f"max {messages['points']['max']};" in format_report(result)
+
+
 def test_cycle_ratios_are_durations_over_the_bound(report):
     result, _ = report
     rows = result['cycle']

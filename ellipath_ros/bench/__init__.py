@@ -27,6 +27,7 @@
   :mod:`.e2e`;
 * ``cycle``: planned durations of the paper's example and the 25-305-25 mm cycle against
   TOPP-RA's bound (:mod:`.cycle`);
+* ``messages``: the points and serialized bytes of each request's message (p50, p99, max);
 * ``executed``: the worst executed (JTC-interpolated) TCP speed, acceleration and jerk over
   the latency requests, as ratios to the limits;
 * ``picks_per_min`` on the 25-305-25 mm cycle, beside ABB's quoted IRB 360 figure;
@@ -49,8 +50,8 @@ from .cycle import cycle_rows, picks_per_minute, topp_bound
 from .e2e import EndToEndError, measure_end_to_end
 from .latency import (
     DEFAULT_SEED, executed_peaks, latency_stats, measure_curvature_requests, measure_legs,
-    measure_messages, measure_requests, MIN_HORIZONTAL_OFFSET, random_pairs, WORKSPACE_RADIUS,
-    WORKSPACE_Z)
+    measure_messages, measure_requests, message_sizes, MIN_HORIZONTAL_OFFSET, random_pairs,
+    WORKSPACE_RADIUS, WORKSPACE_Z)
 
 __all__ = ['MODES', 'run_bench', 'format_report', 'topp_bound']
 
@@ -171,6 +172,7 @@ def run_bench(mode='full', pairs=None, e2e_pairs=None, seed=None, domain_id=None
             requests, settings, budgets['curvature'], progress),
         'message_ms': measure_messages(requests, settings.frame_id, progress),
     }
+    result['messages'] = message_sizes(requests)
     result['executed'] = executed_peaks(requests, config, budgets['executed'], progress)
     latency = {name: section.stats() for name, section in sections.items()}
     try:
@@ -240,6 +242,13 @@ def format_report(result):
         lines.append(f"| {name[:-3]} | {_number(stats['p50'], '.1f')} | "
                      f"{_number(stats['p99'], '.1f')} | {_number(stats['max'], '.1f')} | "
                      f"{stats['n']} | {'; '.join(text)} |")
+    messages = result['messages']
+    if messages['n']:
+        lines += ['', f"messages ({messages['n']} requests, both legs and the dwells): points "
+                  f"p50 {messages['points']['p50']:.0f}, p99 {messages['points']['p99']:.0f}, "
+                  f"max {messages['points']['max']}; serialized "
+                  f"{messages['bytes']['p50'] / 1e3:.1f} / {messages['bytes']['p99'] / 1e3:.1f} "
+                  f"/ {messages['bytes']['max'] / 1e3:.1f} kB"]
     executed = result['executed']
     lines += ['', f"executed (JTC's quintic through the published points, {executed['n']} "
               f"requests): worst speed {executed['speed']:.3f}, acceleration "

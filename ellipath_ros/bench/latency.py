@@ -256,6 +256,22 @@ def measure_messages(requests, frame_id, progress):
         lambda request: serialized_joint_trajectory(request.plan.joint_trajectory, frame_id))
 
 
+def message_sizes(requests):
+    """
+    Return the points and the serialized bytes of each planned request's message.
+
+    ``{'points': {p50, p99, max}, 'bytes': {p50, p99, max}, 'n'}``: what a request publishes
+    (both legs and the dwells in one JointTrajectory), percentiles interpolated.
+    """
+    if not requests:
+        return {'points': None, 'bytes': None, 'n': 0}
+    points = [len(request.message.trajectory.time_from_start) for request in requests]
+    sizes = [len(request.message.data) for request in requests]
+    return {name: {'p50': float(np.percentile(values, 50.0)),
+                   'p99': float(np.percentile(values, 99.0)), 'max': int(max(values))}
+            for name, values in (('points', points), ('bytes', sizes))} | {'n': len(requests)}
+
+
 def executed_peaks(requests, config, budget_s, progress):
     """
     Worst executed TCP speed, acceleration and jerk over the planned requests.
