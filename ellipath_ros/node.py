@@ -72,7 +72,6 @@ configuration stays in force.
 """
 
 import collections
-import ctypes
 import dataclasses
 import gc
 import math
@@ -110,6 +109,9 @@ from ellipath_ros.core.sequencing import PlannedMotion
 from ellipath_ros.core.sequencing import PosePairing
 from ellipath_ros.core.sequencing import QueueFullError
 from ellipath_ros.core.sequencing import Sequencer
+from ellipath_ros.malloc_policy import MALLOC_TRIM_PERIOD
+from ellipath_ros.malloc_policy import release_free_memory
+from ellipath_ros.malloc_policy import set_malloc_policy
 from ellipath_ros.parameters import build_settings
 from ellipath_ros.parameters import parameter_declarations
 from ellipath_ros.parameters import PARAMETER_NAMES
@@ -202,37 +204,6 @@ WORKER_POLL = 0.1
 # end, but needs the GIL, which a planning thread in NumPy code keeps for up to the switch
 # interval (5 ms by default): 0.5 ms bounds that delay of the release.
 SWITCH_INTERVAL = 0.0005
-# glibc's malloc policy for the node's long runs, set by main() before the node's threads
-# exist (docs/reliability.md, "The node over time"). By default glibc gives every thread that
-# allocates an arena of its own (up to 8 per core; the node has about 20 threads), each arena
-# keeps what was freed in it, and the mmap threshold rises to the largest block freed so far
-# (mallopt(3)), so that NumPy's large temporaries come from the arenas instead of being mapped
-# and unmapped. Under continuous pairs the node's resident memory kept rising (60 KiB a minute
-# after 8 minutes) while the memory in use (mallinfo2) did not: it was memory freed and kept.
-# Two arenas and fixed thresholds keep it flat. The thresholds also set what a plan pays in
-# page faults: a block above the mmap threshold is mapped and its pages faulted in at each
-# use, and free memory above the trim threshold (128 KiB unless set) at an arena's top is
-# given back after each free, to be faulted in again by the next plan. At 256 KiB and 128
-# KiB a default plan took 200-800 minor faults and up to 8 ms of system time (64 KiB: 14
-# ms); at 2 MiB and 8 MiB none at the median, 3 at p90 (NumPy's largest temporaries of a
-# default plan stay below 2 MiB), with 7 MiB kept free after a plan instead of 2.5.
-MALLOC_ARENA_MAX = 2
-MALLOC_MMAP_THRESHOLD = 2 * 1024 * 1024  # bytes
-MALLOC_TRIM_THRESHOLD = 8 * 1024 * 1024  # bytes
-# mallopt() parameters (glibc's malloc.h).
-_M_TRIM_THRESHOLD = -1
-_M_MMAP_THRESHOLD = -3
-_M_ARENA_MAX = -8
-# Environment variables with which the caller sets glibc's malloc policy: theirs prevails.
-MALLOC_ENVIRONMENT = ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'MALLOC_TRIM_THRESHOLD_',
-                      'GLIBC_TUNABLES')
-# The planning thread gives glibc's free pages back (release_free_memory) after a plan at
-# most once per this period [s], not after every plan: the plan after a trim faults in again
-# every page it uses (about 800 minor faults, 4 ms of system time and as much user time,
-# a third of a default plan's CPU), and the node planned each pair after idle time 35 ms
-# against 21 in a loop. Once a minute still bounds what the arenas keep (the creep that the
-# trim stopped was about 90 KiB a minute, docs/reliability.md).
-MALLOC_TRIM_PERIOD = 60.0
 # NumPy's cache of small freed blocks (numpy/_core/src/multiarray/alloc.c: NBUCKETS,
 # NCACHE_DATA, NBUCKETS_DIM / 2, NCACHE_DIM): data blocks below this many bytes, this many of
 # each size; shape and strides blocks of arrays of rank below this, this many of each rank.
@@ -1236,57 +1207,6 @@ def _stamp_key(stamp):
     return (stamp.sec, stamp.nanosec)
 
 
-def set_malloc_policy(environment=os.environ):
-    """
-    Limit glibc's malloc arenas and fix its mmap and trim thresholds; return True if set.
-
-    Nothing is changed off glibc (no ``mallopt``, or not glibc's) or when the caller chose a
-    policy in ``environment`` (see MALLOC_ENVIRONMENT). Call it before the node's threads
-    exist: an arena, once created, stays (the imports already made about three).
-    """
-    if any(name in environment for name in MALLOC_ENVIRONMENT):
-        return False
-    try:
-        if not os.confstr('CS_GNU_LIBC_VERSION'):
-            return False
-        mallopt = ctypes.CDLL(None).mallopt
-    except (AttributeError, OSError, ValueError):
-        return False  # not glibc: its allocator has no such arenas
-    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
-    return bool(mallopt(_M_ARENA_MAX, MALLOC_ARENA_MAX)
-                and mallopt(_M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD)
-                and mallopt(_M_TRIM_THRESHOLD, MALLOC_TRIM_THRESHOLD))
-
-
-def release_free_memory():
-    """
-    Give the free pages of glibc's arenas back to the system (malloc_trim(0)); off glibc, none.
-
-    Called after a plan, at most once per MALLOC_TRIM_PERIOD: the arenas otherwise keep what
-    a plan freed behind blocks still in use, and the node's resident memory crept up by about
-    50 KiB a minute at 1 pair/s; at 3 pairs/s the memory kept rose by 1.9 MiB in 6 minutes
-    while the memory in use did not (docs/reliability.md, "The node over time"). About 0.4 ms
-    of CPU, and the next plan faults in again the pages given back.
-    """
-    if _MALLOC_TRIM is not None:
-        _MALLOC_TRIM(0)
-
-
-def _glibc_malloc_trim():
-    """Return glibc's malloc_trim, or None off glibc."""
-    try:
-        if not os.confstr('CS_GNU_LIBC_VERSION'):
-            return None
-        malloc_trim = ctypes.CDLL(None).malloc_trim
-    except (AttributeError, OSError, ValueError):
-        return None
-    malloc_trim.argtypes = (ctypes.c_size_t,)
-    return malloc_trim
-
-
-_MALLOC_TRIM = _glibc_malloc_trim()
-
-
 def fill_numpy_cache():
     """
     Fill NumPy's cache of small freed blocks once, so that the node's memory does not creep.
@@ -1379,7 +1299,8 @@ def main(args=None, early_signals=()):
         this function are installed, then any of them stops the node at once.
 
     """
-    # Before rclpy starts the DDS threads and the node its own (see MALLOC_ARENA_MAX).
+    # Before the node starts its threads (see malloc_policy.MALLOC_ARENA_MAX); the
+    # ellipath_node command has set it already, before importing rclpy.
     set_malloc_policy()
     # Before the first plan (see fill_numpy_cache).
     fill_numpy_cache()

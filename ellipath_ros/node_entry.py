@@ -22,9 +22,16 @@ in a process that inherited SIGINT ignored (started with ``&`` by a script, ``no
 nothing at all, so the node started anyway and a second signal was needed. Here a signal in
 that window is only recorded, and ``node.main`` stops as soon as its own handlers are in
 place: exit status 0, no traceback, at any moment after the process starts.
+
+It also sets glibc's malloc policy before those imports (:mod:`ellipath_ros.malloc_policy`):
+importing rclpy starts threads that allocate, and each would otherwise make an arena of its
+own that stays. ``python -m ellipath_ros.node_entry`` runs the same as the command.
 """
 
 import signal
+import sys
+
+from ellipath_ros.malloc_policy import set_malloc_policy
 
 
 def main(args=None):
@@ -40,5 +47,10 @@ def main(args=None):
     early_signals = []
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda signum, frame: early_signals.append(signum))
+    set_malloc_policy()  # before rclpy's threads exist
     from ellipath_ros import node  # after the handlers, on purpose (see above)
     return node.main(args, early_signals=early_signals)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

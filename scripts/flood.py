@@ -15,12 +15,12 @@
 """
 Flood ``ellipath_node`` with pick/place pairs from another process (issue 13, item 3).
 
-Starts the node (``python -m ellipath_ros.node``, the code of this checkout) as a
-subprocess, then offers ``--rate`` pairs per second for ``--seconds``: with ``--stream
-pick_place`` each pair as one ``pick_place`` PoseArray, with ``two_topic`` as ``pick_pose``
-then ``place_pose`` with a stamp of their own (``stamp`` pairing), with ``mixed`` (default)
-even pair ids one way and odd ones the other. Every pair is identifiable: its id is written
-into the pick's and the place's x and y. About ``--invalid`` of them are invalid (a NaN
+Starts the node (``python -m ellipath_ros.node_entry``, the ``ellipath_node`` command, the code
+of this checkout) as a subprocess, then offers ``--rate`` pairs per second for ``--seconds``:
+with ``--stream pick_place`` each pair as one ``pick_place`` PoseArray, with ``two_topic`` as
+``pick_pose`` then ``place_pose`` with a stamp of their own (``stamp`` pairing), with ``mixed``
+(default) even pair ids one way and odd ones the other. Every pair is identifiable: its id is
+written into the pick's and the place's x and y. About ``--invalid`` of them are invalid (a NaN
 place, or a wrong frame). The publishers are RELIABLE/KEEP_ALL, as the node asks of senders:
 when the node reads slower, ``publish()`` blocks and then raises (back-pressure); such a
 message is counted as refused (a pair whose pick was refused is not sent on; one whose place
@@ -270,7 +270,7 @@ def publish(publisher, message):
 def start_node(log_path, env):
     """Start ellipath_node (this checkout's code); return the Popen once it is ready."""
     log = open(log_path, 'w')
-    process = subprocess.Popen([sys.executable, '-m', 'ellipath_ros.node'], env=env,
+    process = subprocess.Popen([sys.executable, '-m', 'ellipath_ros.node_entry'], env=env,
                                stdout=log, stderr=subprocess.STDOUT)
     log.close()
     deadline = time.monotonic() + START_TIMEOUT

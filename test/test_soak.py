@@ -25,8 +25,8 @@ import signal
 import subprocess
 import sys
 
-from ellipath_ros.node import MALLOC_ARENA_MAX
-from ellipath_ros.node import MALLOC_MMAP_THRESHOLD
+from ellipath_ros.malloc_policy import MALLOC_ARENA_MAX
+from ellipath_ros.malloc_policy import MALLOC_MMAP_THRESHOLD
 from ellipath_ros.node import NUMPY_CACHE_BYTES
 from ellipath_ros.node import NUMPY_CACHE_DEPTH
 import pytest
@@ -101,7 +101,8 @@ def test_the_verdict_fits_a_line_through_noisy_samples():
 # larger one was freed (glibc's default raises its mmap threshold to the largest block freed).
 ALLOCATOR_PROBE = r"""
 import ctypes, os, re, sys, tempfile, threading
-from ellipath_ros.node import MALLOC_MMAP_THRESHOLD, set_malloc_policy
+import ellipath_ros.node  # its imports (rclpy) make arenas before the policy is set
+from ellipath_ros.malloc_policy import MALLOC_MMAP_THRESHOLD, set_malloc_policy
 libc = ctypes.CDLL(None)
 libc.malloc.restype = ctypes.c_void_p
 libc.free.argtypes = (ctypes.c_void_p,)
@@ -214,6 +215,45 @@ def test_the_node_fills_numpys_small_block_cache_before_planning():
     assert numpy_cache_growth(fill=False) > cache_bytes // 2
     # Filled first, the same arrays reuse the cached blocks: no growth beyond noise.
     assert numpy_cache_growth(fill=True) < cache_bytes // 50
+
+
+# Run in a process of its own: the ellipath_node command's start (node_entry.main) up to
+# node.main, which prints glibc's arenas instead of running the node.
+ENTRY_PROBE = r"""
+import builtins, os, re, sys, tempfile, ctypes
+import ellipath_ros.node_entry as entry
+libc = ctypes.CDLL(None)
+libc.fopen.restype = ctypes.c_void_p
+libc.fopen.argtypes = (ctypes.c_char_p, ctypes.c_char_p)
+libc.malloc_info.argtypes = (ctypes.c_int, ctypes.c_void_p)
+libc.fclose.argtypes = (ctypes.c_void_p,)
+def arenas(args, early_signals=()):
+    path = os.path.join(tempfile.mkdtemp(), 'info.xml')
+    stream = libc.fopen(path.encode(), b'w')
+    libc.malloc_info(0, stream)
+    libc.fclose(stream)
+    print(len(re.findall('<heap nr=', open(path).read())), 'rclpy' in sys.modules)
+real_import = builtins.__import__
+def importing(name, *args, **kwargs):
+    module = real_import(name, *args, **kwargs)
+    if name == 'ellipath_ros' and 'node' in (args[2] if len(args) > 2 and args[2] else ()):
+        module.node.main = arenas
+    return module
+builtins.__import__ = importing
+entry.main([])
+"""
+
+
+def test_the_node_command_sets_the_policy_before_rclpys_threads_allocate():
+    if not os.confstr('CS_GNU_LIBC_VERSION'):
+        pytest.skip('glibc only: other allocators have no arenas to limit')
+    env = {name: value for name, value in os.environ.items()
+           if name not in ('MALLOC_ARENA_MAX', 'MALLOC_MMAP_THRESHOLD_', 'GLIBC_TUNABLES')}
+    output = subprocess.run([sys.executable, '-c', ENTRY_PROBE], env=env, check=True,
+                            capture_output=True, text=True, timeout=60).stdout.split()
+    # Importing the node (rclpy) made no arena beyond MALLOC_ARENA_MAX: the planning thread
+    # allocates in the arena that malloc_trim gives back in full.
+    assert output == [str(MALLOC_ARENA_MAX), 'True']
 
 
 @pytest.fixture(scope='module')

@@ -17,7 +17,8 @@ Sample the memory of ``ellipath_node`` from inside it (an experiment, docs/relia
 
 Python imports ``sitecustomize`` at start-up from the path: with this directory on
 ``PYTHONPATH`` and ``ELLIPATH_MEMORY_PROBE`` naming a file, a process started as
-``python -m ellipath_ros.node`` (as scripts/flood.py and scripts/soak.py start it) writes a
+``python -m ellipath_ros.node_entry`` (as scripts/flood.py and scripts/soak.py start it) or
+``python -m ellipath_ros.node`` writes a
 JSON line every ``ELLIPATH_MEMORY_PROBE_PERIOD`` seconds (default 20): VmRSS by kind of
 mapping (``[heap]`` is glibc's main arena; ``anon`` its other arenas, Python's and large
 mapped blocks; ``file`` the libraries; ``shm`` Fast DDS's shared memory), glibc's
@@ -55,7 +56,8 @@ class _Mallinfo2(ctypes.Structure):
 def _is_the_node():
     try:
         with open('/proc/self/cmdline', 'rb') as cmdline:
-            return b'ellipath_ros.node' in cmdline.read().split(b'\0')
+            arguments = cmdline.read().split(b'\0')
+            return b'ellipath_ros.node' in arguments or b'ellipath_ros.node_entry' in arguments
     except OSError:
         return False
 
