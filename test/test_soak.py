@@ -96,16 +96,11 @@ def test_the_verdict_fits_a_line_through_noisy_samples():
     assert abs(noisy['growth']['rss']['fitted_rise_kib']) < 100.0
 
 
-# Run in a process of its own: threads that each allocate, then the number of glibc arenas
-# (heaps of malloc_info), and whether a block above the threshold is mapped again after a
-# larger one was freed (glibc's default raises its mmap threshold to the largest block freed).
-ALLOCATOR_PROBE = r"""
-import ctypes, os, re, sys, tempfile, threading
-import ellipath_ros.node  # its imports (rclpy) make arenas before the policy is set
-from ellipath_ros.malloc_policy import MALLOC_MMAP_THRESHOLD, set_malloc_policy
+# glibc through ctypes, the start of each probe below (each runs in a process of its own): the
+# memory in use (libc.mallinfo2().uordblks) and the number of arenas (heaps of malloc_info).
+GLIBC_PROBE = r"""
+import ctypes, os, re, tempfile
 libc = ctypes.CDLL(None)
-libc.malloc.restype = ctypes.c_void_p
-libc.free.argtypes = (ctypes.c_void_p,)
 libc.fopen.restype = ctypes.c_void_p
 libc.fopen.argtypes = (ctypes.c_char_p, ctypes.c_char_p)
 libc.malloc_info.argtypes = (ctypes.c_int, ctypes.c_void_p)
@@ -121,6 +116,18 @@ def arenas():
     libc.malloc_info(0, stream)
     libc.fclose(stream)
     return len(re.findall('<heap nr=', open(path).read()))
+"""
+
+
+# Run in a process of its own: threads that each allocate, then the number of glibc arenas
+# (heaps of malloc_info), and whether a block above the threshold is mapped again after a
+# larger one was freed (glibc's default raises its mmap threshold to the largest block freed).
+ALLOCATOR_PROBE = GLIBC_PROBE + r"""
+import threading
+import ellipath_ros.node  # its imports (rclpy) make arenas before the policy is set
+from ellipath_ros.malloc_policy import MALLOC_MMAP_THRESHOLD, set_malloc_policy
+libc.malloc.restype = ctypes.c_void_p
+libc.free.argtypes = (ctypes.c_void_p,)
 # The imports have started threads of their own (and arenas) before main() can set it.
 arenas_before = arenas()
 policy = set_malloc_policy(os.environ)
@@ -179,23 +186,17 @@ def test_the_node_limits_glibcs_arenas_and_fixes_its_mmap_threshold():
 # Run in a process of its own: glibc's memory in use [bytes] grown by arrays of every size that
 # NumPy's small-block cache holds, made and freed NUMPY_CACHE_DEPTH at a time, with or without
 # fill_numpy_cache() first.
-NUMPY_CACHE_PROBE = r"""
-import ctypes, sys
+NUMPY_CACHE_PROBE = GLIBC_PROBE + r"""
+import sys
 import numpy as np
 from ellipath_ros.node import fill_numpy_cache, NUMPY_CACHE_BYTES, NUMPY_CACHE_DEPTH
-class Mallinfo(ctypes.Structure):
-    _fields_ = [(name, ctypes.c_size_t) for name in (
-        'arena', 'ordblks', 'smblks', 'hblks', 'hblkhd', 'usmblks', 'fsmblks', 'uordblks',
-        'fordblks', 'keepcost')]
-mallinfo2 = ctypes.CDLL(None).mallinfo2
-mallinfo2.restype = Mallinfo
 if sys.argv[1] == 'fill':
     fill_numpy_cache()
-before = mallinfo2().uordblks
+before = libc.mallinfo2().uordblks
 for size in range(1, NUMPY_CACHE_BYTES):
     held = [np.empty(size, dtype=np.uint8) for _ in range(NUMPY_CACHE_DEPTH)]
     del held
-print(mallinfo2().uordblks - before)
+print(libc.mallinfo2().uordblks - before)
 """
 
 
@@ -219,25 +220,16 @@ def test_the_node_fills_numpys_small_block_cache_before_planning():
 
 # Run in a process of its own: the ellipath_node command's start (node_entry.main) up to
 # node.main, which prints glibc's arenas instead of running the node.
-ENTRY_PROBE = r"""
-import builtins, os, re, sys, tempfile, ctypes
+ENTRY_PROBE = GLIBC_PROBE + r"""
+import builtins, sys
 import ellipath_ros.node_entry as entry
-libc = ctypes.CDLL(None)
-libc.fopen.restype = ctypes.c_void_p
-libc.fopen.argtypes = (ctypes.c_char_p, ctypes.c_char_p)
-libc.malloc_info.argtypes = (ctypes.c_int, ctypes.c_void_p)
-libc.fclose.argtypes = (ctypes.c_void_p,)
-def arenas(args, early_signals=()):
-    path = os.path.join(tempfile.mkdtemp(), 'info.xml')
-    stream = libc.fopen(path.encode(), b'w')
-    libc.malloc_info(0, stream)
-    libc.fclose(stream)
-    print(len(re.findall('<heap nr=', open(path).read())), 'rclpy' in sys.modules)
+def node_main(args, early_signals=()):
+    print(arenas(), 'rclpy' in sys.modules)
 real_import = builtins.__import__
 def importing(name, *args, **kwargs):
     module = real_import(name, *args, **kwargs)
     if name == 'ellipath_ros' and 'node' in (args[2] if len(args) > 2 and args[2] else ()):
-        module.node.main = arenas
+        module.node.main = node_main
     return module
 builtins.__import__ = importing
 entry.main([])
