@@ -10,7 +10,7 @@ export AMENT_PREFIX_PATH ?= $(abspath $(VENV))
 
 SOURCES := $(shell find ellipath_ros config launch resource -type f -not -path '*/__pycache__/*')
 
-# After installing, numba compiles the planner's kernels (~50 s CPU) into its cache once per
+# After installing, numba compiles the planner's kernels (~85 s CPU) into its cache once per
 # copy, not in whichever test process calls them first: the installed copy (run from / so that
 # the checkout is not on the path), which the CLI and node subprocesses use, and the checkout,
 # which pytest imports.

@@ -275,7 +275,7 @@ def _bisect_right(values, count, x):
     return low
 
 
-@kernel
+@kernel(zero_divisions=False)
 def _table_at(table, cell, s):
     """
     Return (kappa [1/m], dkappa/ds [1/m**2], speed cap [m/s]) at arc length ``s`` [m].
@@ -312,7 +312,7 @@ def _jerk_range(table, constants, s, v, a):
     return True, kappa * kappa * v3 - room, kappa * kappa * v3 + room
 
 
-@kernel
+@kernel(zero_divisions=False)
 def _level_off(v, a, speed, h, level, jerk_limit):
     """Return (jerk, step): constant jerk bringing s'' to 0 exactly at s' = ``speed``."""
     gap = speed - v
@@ -320,7 +320,7 @@ def _level_off(v, a, speed, h, level, jerk_limit):
     return jerk, _py_min(h, a / -jerk)
 
 
-@kernel
+@kernel(inline=True)
 def _until_level_off(v, a, jerk, h, speed, level):
     """Return the time within the step at which v + a**2/(2 level) reaches ``speed``."""
     low, high, twice_level = 0.0, h, 2.0 * level
@@ -336,40 +336,62 @@ def _until_level_off(v, a, jerk, h, speed, level):
 
 
 @kernel(inline=True)
+def _held(done, table, constants, factor, budget, states, info, floats):
+    """
+    Return ``done``: the one return of :func:`_advance` and :func:`_stop_or_back_up`.
+
+    Inlined into a loop, a kernel takes its arrays as new variables, each counted: an atomic
+    increment where the kernel starts, a decrement where the variable dies. LLVM's pass that
+    drops such pairs (numba's refprune) drops one across blocks only where the decrement
+    follows every path from the increment and no other decrement lies between. Arrays dying
+    at their last uses, scattered along the step's returns, kept all seven pairs: 14 atomic
+    operations per step, about 40 % of the scans' time (perf, issue 11). Used together here,
+    at the one return, they die together there, and every pair is dropped; the loops that
+    inline the step compile without raising divisions (``zero_divisions=False``: the step's
+    divisors are the cell, the levelling jerk, the step, 3 kappa v where kappa v > 0), as an
+    exception's way out would pass by the decrements too.
+    """
+    return done
+
+
+@kernel(inline=True)
 def _advance(table, constants, factor, budget, states, info, floats, back_up):
     """
     Take one step of a scan: _ADVANCED, _STOPPED (see its status) or _OUT_OF_STEPS.
 
     The scanner's arrays (table, constants, factor, budget), then the scan's
     (states, info, floats), each passed on its own: a kernel looping over
-    steps unpacks its tuples once, and the step is this kernel's own code
-    (each array a kernel takes costs reference counting per call, or per
-    inlined call). The step takes the largest jerk within the jerk norm at
-    the state whose end state stays below the acceleration target there (see
-    the comment in the loop), levels off before the speed limit ahead, and is
-    legal at its end (else the largest legal jerk, bisected towards the
-    lowest). The new state is appended with the table's reading there, which
-    the next step starts from. A step that cannot be taken stops the scan or
-    backs it up (:func:`_stop_or_back_up`).
+    steps unpacks its tuples once, and the step is this kernel's own code,
+    with one return past every array's last use, so that no array is counted
+    per step (see :func:`_held`). The step takes the largest jerk within the
+    jerk norm at the state whose end state stays below the acceleration
+    target there (see the comment in the loop), levels off before the speed
+    limit ahead, and is legal at its end (else the largest legal jerk,
+    bisected towards the lowest). The new state is appended with the table's
+    reading there, which the next step starts from. A step that cannot be
+    taken stops the scan or backs it up (:func:`_stop_or_back_up`).
     """
-    if info[_STATUS] != _LIVE:
-        return _STOPPED
+    done, failure = _STOPPED, _LIVE
     count = info[_COUNT]
-    if states[1, count - 1] >= floats[_END_AT]:
+    # Whether the step is still being taken: False once it stops, runs out or fails.
+    going = info[_STATUS] == _LIVE
+    if going and states[1, count - 1] >= floats[_END_AT]:
         info[_STATUS] = _END
-        return _STOPPED
-    budget[0] -= 1
-    # A scan holds at most the budget's steps (see _Scanner.scan): the capacity test only
-    # guards the arrays.
-    if budget[0] < 0 or count >= states.shape[1]:
-        return _OUT_OF_STEPS
+        going = False
+    if going:
+        budget[0] -= 1
+        # A scan holds at most the budget's steps (see _Scanner.scan): the capacity test only
+        # guards the arrays.
+        if budget[0] < 0 or count >= states.shape[1]:
+            done, going = _OUT_OF_STEPS, False
     cell, speed = constants[_CELL], constants[_SPEED_TARGET]
     accel_limit, jerk_limit = constants[_ACCEL_TARGET], constants[_JERK_TARGET]
     accel_squared, jerk_squared = constants[_ACCEL_SQUARED], constants[_JERK_SQUARED]
     last = table.shape[1] - 2
     # The factors' last index (they cover the table's points and one beyond).
     last_factor = table.shape[1]
-    if info[_READ] == 0:
+    s = v = a = kappa = kappa_s = cap = middle = room = 0.0
+    if going and info[_READ] == 0:
         s, v, a = states[1, count - 1], states[2, count - 1], states[3, count - 1]
         kappa, kappa_s, cap = _table_at(table, cell, s)
         # The jerk range at (s, v, a): |jerk|**2 = (s''' - kappa**2 v**3)**2
@@ -377,174 +399,184 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
         v3 = v * v * v
         normal = kappa_s * v3 + 3.0 * kappa * v * a
         if normal >= jerk_limit or -normal >= jerk_limit:
-            return _stop_or_back_up(_SPEED, constants, factor, states, info, back_up)
-        middle, room = kappa * kappa * v3, math.sqrt(jerk_squared - normal * normal)
-    else:
+            failure, going = _SPEED, False
+        else:
+            middle, room = kappa * kappa * v3, math.sqrt(jerk_squared - normal * normal)
+    elif going:
         # The previous step read the table at this state (and found its jerk range).
         s, v, a = floats[_READING], floats[_READING + 1], floats[_READING + 2]
         kappa, kappa_s, cap = floats[_READING + 3], floats[_READING + 4], floats[_READING + 5]
         middle, room = floats[_READING + 6], floats[_READING + 7]
     if cap < speed:
         speed = cap
-    if v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED):
-        return _stop_or_back_up(_SPEED, constants, factor, states, info, back_up)
+    if going and (v > speed * (1.0 + 1e-9) or (a < 0.0 and v < _MIN_SCAN_SPEED)):
+        failure, going = _SPEED, False
     lowest, highest = middle - room, middle + room
-    h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
-    if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
-        # The curvature changes fast here (a needle-sharp bend): shorter steps.
-        h = _py_max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
-    # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
-    level = 1e-3 * jerk_limit
-    if -lowest >= level:
-        level = -lowest
-    level *= _LEVEL_OFF_JERK
-    # Level off (and cruise) at the lowest speed limit until where the levelling off
-    # would end.
-    reach = _LEVEL_REACH * accel_limit
-    if a >= reach:
-        reach = a
-    reach = v * reach / level
-    goal = speed
-    for ahead in (s + 0.5 * reach, s + reach):
-        index = int(ahead / cell)
-        if index < 0:
-            index = 0
-        elif index > last:
-            index = last
-        if table[4, index] < goal:
-            goal = table[4, index]
     # Whether the table's reading at the step's end (s_end, v_end, kappa_end, kappa_s_end,
     # cap_end) is that of the jerk and step chosen.
     read = False
     s_end = v_end = kappa_end = kappa_s_end = cap_end = 0.0
-    if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
-        jerk, a = 0.0, 0.0
-        # Cruising changes nothing but the place: up to half a table cell per step.
-        h = _py_max(h, 0.5 * cell / v)
-    elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
-        jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
-    else:
-        normal_share = constants[_SHARE]
-        half_a = a / 2.0
-        jerk = highest
-        for _ in range(12):
-            h_jerk = h * jerk
-            s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
-            v_end = v + h * (a + h_jerk / 2.0)
-            x = s_end / cell
-            cell_index = int(x)
-            index = cell_index
+    jerk = h = 0.0
+    if going:
+        h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
+        if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
+            # The curvature changes fast here (a needle-sharp bend): shorter steps.
+            h = _py_max(_SCAN_KAPPA_CHANGE * kappa / (v * abs(kappa_s)), _SCAN_STEP_MIN)
+        # Levelling off ramps s'' down with a share of the jerk the state leaves for it.
+        level = 1e-3 * jerk_limit
+        if -lowest >= level:
+            level = -lowest
+        level *= _LEVEL_OFF_JERK
+        # Level off (and cruise) at the lowest speed limit until where the levelling off
+        # would end.
+        reach = _LEVEL_REACH * accel_limit
+        if a >= reach:
+            reach = a
+        reach = v * reach / level
+        goal = speed
+        for ahead in (s + 0.5 * reach, s + reach):
+            index = int(ahead / cell)
             if index < 0:
                 index = 0
             elif index > last:
                 index = last
-            fraction = x - index
-            kappa_end = table[0, index] + fraction * table[1, index]
-            kappa_s_end = table[2, index] + fraction * table[3, index]
-            cap_end = table[4, index]
-            # The largest s'' to aim at in the end state (none if v is too high there).
-            # Below the acceleration norm, and such that the normal jerk
-            # 3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for changing
-            # s'' (with s''' = 0 feasible: the tangential part of p''' v**3 is
-            # -kappa**2 v**3). Negative where the curvature tightens too fast for the
-            # speed: the scan then slows down. A back-up lowers it (factors of 1 change
-            # no target: 1.0 * target and target - 0.0 * accel_limit are target).
-            has_target = False
-            target = 0.0
-            kappa_v = kappa_end * v_end
-            normal_accel = kappa_v * v_end
-            # math.pow, the C library's pow that Python's ** calls (not v * v * v, which
-            # rounds differently).
-            v_cubed = math.pow(v_end, 3.0)
-            centripetal = kappa_end * kappa_end * v_cubed
-            if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
-                    and normal_accel < accel_limit and centripetal < jerk_limit):
-                target = math.sqrt(accel_squared - normal_accel * normal_accel)
-                floor = -target
-                if kappa_v > 0.0:
-                    share = normal_share * math.sqrt(
-                        jerk_squared - math.pow(centripetal, constants[_TWO]))
-                    change = kappa_s_end * v_cubed
-                    divisor = 3.0 * kappa_end * v_end
-                    bound = (share - change) / divisor
-                    if bound < target:
-                        target = bound
-                    bound = (-share - change) / divisor
-                    if bound > floor:
-                        floor = bound
-                target_share = factor[0 if cell_index < 0 else last_factor
-                                      if cell_index > last_factor else cell_index]
-                target = (target_share * target if target > 0.0
-                          else target - (1.0 - target_share) * accel_limit)
-                has_target = target >= floor
-            if not has_target:
-                # Too fast at the step's end: try less jerk (down to the lowest).
-                if jerk <= lowest + 1e-9:
-                    return _stop_or_back_up(_SPEED, constants, factor, states, info,
-                                            back_up)
-                jerk = 0.5 * (jerk + lowest)
-                continue
-            if a + h_jerk <= target + 1e-12:
-                read = True
-                break
-            jerk = (target - a) / h
-        a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
-        if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
-            read = False
-            h = _until_level_off(v, a, jerk, h, goal, level)
-            if h <= 1e-12:
-                jerk, h = _level_off(v, a, goal, _SCAN_STEP_SHORT, level, jerk_limit)
-        elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
-            # s'' passes 0 inside the step: its speed peak must stay below the limit too.
-            read = False
+            if table[4, index] < goal:
+                goal = table[4, index]
+        if a <= 1e-12 and v >= goal * (1.0 - 1e-9):
+            jerk, a = 0.0, 0.0
+            # Cruising changes nothing but the place: up to half a table cell per step.
+            h = _py_max(h, 0.5 * cell / v)
+        elif a > 0.0 and v + a * a / (2.0 * level) >= goal * (1.0 - 1e-12):
             jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
-    if not jerk >= lowest - 1e-9:
-        # Not accelerating, the speed itself is too high for what follows.
-        return _stop_or_back_up(_ACCEL if a > 1e-9 else _SPEED, constants, factor, states,
-                                info, back_up)
-    # The jerk must be legal at the step's end too; if it is not, the largest legal one
-    # in [lowest, jerk] is bisected for (12 halvings).
-    low, high, legal, trial = lowest, jerk, False, jerk
-    legal_jerk = 0.0
-    for halving in range(13):
-        if not read:
-            s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
-            v_end = v + h * (a + h * trial / 2.0)
-            kappa_end, kappa_s_end, cap_end = _table_at(table, cell, s_end)
-        read = False
-        a_end = a + h * trial
-        v3 = v_end * v_end * v_end
-        normal = kappa_s_end * v3 + 3.0 * kappa_end * v_end * a_end
-        if normal < jerk_limit and -normal < jerk_limit:
-            room_end = math.sqrt(jerk_squared - normal * normal)
-            middle_end = kappa_end * kappa_end * v3
-            if middle_end - room_end - 1e-9 <= trial <= middle_end + room_end + 1e-9:
-                legal, legal_jerk = True, trial
-                floats[_READING], floats[_READING + 1] = s_end, v_end
-                floats[_READING + 2], floats[_READING + 3] = a_end, kappa_end
-                floats[_READING + 4], floats[_READING + 5] = kappa_s_end, cap_end
-                floats[_READING + 6], floats[_READING + 7] = middle_end, room_end
-                if halving == 0:
+        else:
+            normal_share = constants[_SHARE]
+            half_a = a / 2.0
+            jerk = highest
+            for _ in range(12):
+                h_jerk = h * jerk
+                s_end = s + h * (v + h * (half_a + h_jerk / 6.0))
+                v_end = v + h * (a + h_jerk / 2.0)
+                x = s_end / cell
+                cell_index = int(x)
+                index = cell_index
+                if index < 0:
+                    index = 0
+                elif index > last:
+                    index = last
+                fraction = x - index
+                kappa_end = table[0, index] + fraction * table[1, index]
+                kappa_s_end = table[2, index] + fraction * table[3, index]
+                cap_end = table[4, index]
+                # The largest s'' to aim at in the end state (none if v is too high there).
+                # Below the acceleration norm, and such that the normal jerk
+                # 3 kappa v s'' + kappa_s v**3 leaves a share of the jerk budget for changing
+                # s'' (with s''' = 0 feasible: the tangential part of p''' v**3 is
+                # -kappa**2 v**3). Negative where the curvature tightens too fast for the
+                # speed: the scan then slows down. A back-up lowers it (factors of 1 change
+                # no target: 1.0 * target and target - 0.0 * accel_limit are target).
+                has_target = False
+                target = 0.0
+                kappa_v = kappa_end * v_end
+                normal_accel = kappa_v * v_end
+                # math.pow, the C library's pow that Python's ** calls (not v * v * v, which
+                # rounds differently).
+                v_cubed = math.pow(v_end, 3.0)
+                centripetal = kappa_end * kappa_end * v_cubed
+                if (v_end > 0.0 and v_end <= cap_end * (1.0 + 1e-9)
+                        and normal_accel < accel_limit and centripetal < jerk_limit):
+                    target = math.sqrt(accel_squared - normal_accel * normal_accel)
+                    floor = -target
+                    if kappa_v > 0.0:
+                        share = normal_share * math.sqrt(
+                            jerk_squared - math.pow(centripetal, constants[_TWO]))
+                        change = kappa_s_end * v_cubed
+                        divisor = 3.0 * kappa_end * v_end
+                        bound = (share - change) / divisor
+                        if bound < target:
+                            target = bound
+                        bound = (-share - change) / divisor
+                        if bound > floor:
+                            floor = bound
+                    target_share = factor[0 if cell_index < 0 else last_factor
+                                          if cell_index > last_factor else cell_index]
+                    target = (target_share * target if target > 0.0
+                              else target - (1.0 - target_share) * accel_limit)
+                    has_target = target >= floor
+                if not has_target:
+                    # Too fast at the step's end: try less jerk (down to the lowest).
+                    if jerk <= lowest + 1e-9:
+                        failure, going = _SPEED, False
+                        break
+                    jerk = 0.5 * (jerk + lowest)
+                    continue
+                if a + h_jerk <= target + 1e-12:
+                    read = True
                     break
-                low = trial
-                trial = 0.5 * (low + high)
-                continue
-        high = trial
-        trial = 0.5 * (low + high)
-    if not legal:
-        return _stop_or_back_up(_ACCEL if a > 1e-9 else _SPEED, constants, factor, states,
-                                info, back_up)
-    states[0, count] = states[0, count - 1] + h
-    states[1, count], states[2, count], states[3, count] = (
-        floats[_READING], floats[_READING + 1], floats[_READING + 2])
-    states[4, count - 1] = legal_jerk
-    info[_COUNT] = count + 1
-    info[_READ] = 1
-    return _ADVANCED
+                jerk = (target - a) / h
+            if going:
+                a1, v1 = a + jerk * h, v + h * (a + h * jerk / 2.0)
+                if a1 > 0.0 and v1 + a1 * a1 / (2.0 * level) > goal:
+                    read = False
+                    h = _until_level_off(v, a, jerk, h, goal, level)
+                    if h <= 1e-12:
+                        jerk, h = _level_off(v, a, goal, _SCAN_STEP_SHORT, level, jerk_limit)
+                elif a > 0.0 > a1 and v - a * a / (2.0 * jerk) > goal:
+                    # s'' passes 0 inside the step: its speed peak must stay below the limit
+                    # too.
+                    read = False
+                    jerk, h = _level_off(v, a, goal, h, level, jerk_limit)
+    if going and not jerk >= lowest - 1e-9:
+        # Not accelerating, the speed itself is too high for what follows.
+        failure, going = _ACCEL if a > 1e-9 else _SPEED, False
+    if going:
+        # The jerk must be legal at the step's end too; if it is not, the largest legal one
+        # in [lowest, jerk] is bisected for (12 halvings).
+        low, high, legal, trial = lowest, jerk, False, jerk
+        legal_jerk = 0.0
+        for halving in range(13):
+            if not read:
+                s_end = s + h * (v + h * (a / 2.0 + h * trial / 6.0))
+                v_end = v + h * (a + h * trial / 2.0)
+                kappa_end, kappa_s_end, cap_end = _table_at(table, cell, s_end)
+            read = False
+            a_end = a + h * trial
+            v3 = v_end * v_end * v_end
+            normal = kappa_s_end * v3 + 3.0 * kappa_end * v_end * a_end
+            if normal < jerk_limit and -normal < jerk_limit:
+                room_end = math.sqrt(jerk_squared - normal * normal)
+                middle_end = kappa_end * kappa_end * v3
+                if middle_end - room_end - 1e-9 <= trial <= middle_end + room_end + 1e-9:
+                    legal, legal_jerk = True, trial
+                    floats[_READING], floats[_READING + 1] = s_end, v_end
+                    floats[_READING + 2], floats[_READING + 3] = a_end, kappa_end
+                    floats[_READING + 4], floats[_READING + 5] = kappa_s_end, cap_end
+                    floats[_READING + 6], floats[_READING + 7] = middle_end, room_end
+                    if halving == 0:
+                        break
+                    low = trial
+                    trial = 0.5 * (low + high)
+                    continue
+            high = trial
+            trial = 0.5 * (low + high)
+        if legal:
+            states[0, count] = states[0, count - 1] + h
+            states[1, count], states[2, count], states[3, count] = (
+                floats[_READING], floats[_READING + 1], floats[_READING + 2])
+            states[4, count - 1] = legal_jerk
+            info[_COUNT] = count + 1
+            info[_READ] = 1
+            done = _ADVANCED
+        else:
+            failure = _ACCEL if a > 1e-9 else _SPEED
+    if failure != _LIVE:
+        done = _stop_or_back_up(failure, table, constants, factor, budget, states, info, floats,
+                                back_up)
+    return _held(done, table, constants, factor, budget, states, info, floats)
 
 
-@kernel
-def _stop_or_back_up(failure, constants, factor, states, info, back_up):
+@kernel(inline=True)
+def _stop_or_back_up(failure, table, constants, factor, budget, states, info, floats,
+                     back_up):
     """
     Stop a scan whose step failed (``failure``: _SPEED or _ACCEL), or back it up.
 
@@ -552,28 +584,34 @@ def _stop_or_back_up(failure, constants, factor, states, info, back_up):
     acceleration bound falls faster than the jerk can follow (_ACCEL), the
     scan backs up ``_BACK_UP_STEPS`` and lowers its acceleration target over
     the stretch (lower again on repeated trouble), unless ``back_up`` is
-    False or it did so ``_BACK_UP_LIMIT`` times already.
+    False or it did so ``_BACK_UP_LIMIT`` times already. The arrays are
+    :func:`_advance`'s; one return, past every array's last use (see :func:`_held`).
     """
+    done = _STOPPED
     if failure == _SPEED or info[_FAILURES] >= _BACK_UP_LIMIT or not back_up:
         info[_STATUS] = failure
-        return _STOPPED
-    info[_FAILURES] += 1
-    last = info[_COUNT] - 1
-    first = max(0, last - _BACK_UP_STEPS)
-    cell = constants[_CELL]
-    low = max(int(states[1, first] / cell), 0)
-    high = min(int((states[1, last] + _BACK_UP_AHEAD) / cell) + 1, factor.size)
-    # A share of the stretch's lowest is below every share in it: all become that.
-    lowest = factor[low]
-    for index in range(low + 1, high):
-        lowest = _py_min(lowest, factor[index])
-    factor[low:high] = _BACK_UP_FACTOR * lowest
-    info[_COUNT] = first + 1
-    info[_READ] = 0
-    return _ADVANCED
+    else:
+        info[_FAILURES] += 1
+        last = info[_COUNT] - 1
+        first = max(0, last - _BACK_UP_STEPS)
+        cell = constants[_CELL]
+        low = max(int(states[1, first] / cell), 0)
+        high = min(int((states[1, last] + _BACK_UP_AHEAD) / cell) + 1, factor.size)
+        # A share of the stretch's lowest is below every share in it: all become that.
+        lowest = factor[low]
+        for index in range(low + 1, high):
+            lowest = _py_min(lowest, factor[index])
+        # Element by element: a slice would be one more counted array.
+        lowest *= _BACK_UP_FACTOR
+        for index in range(low, high):
+            factor[index] = lowest
+        info[_COUNT] = first + 1
+        info[_READ] = 0
+        done = _ADVANCED
+    return _held(done, table, constants, factor, budget, states, info, floats)
 
 
-@kernel
+@kernel(zero_divisions=False)
 def _run(scanner, scan):
     """Advance ``scan`` until it stops: _STOPPED, or _OUT_OF_STEPS."""
     table, constants, factor, budget = scanner

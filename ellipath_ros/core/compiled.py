@@ -62,7 +62,7 @@ _WARM_UP_REJECTED = (((0.14, 0.08, -0.8), (-0.3, 0.0, -0.9), (0.18, -0.08, -0.83
 _WARM = []
 
 
-def kernel(function=None, *, inline=False):
+def kernel(function=None, *, inline=False, zero_divisions=True):
     """
     Compile ``function`` in nopython mode, cached on disk, without the GIL.
 
@@ -79,6 +79,12 @@ def kernel(function=None, *, inline=False):
         costs as much as the step. Called from Python it is compiled as any kernel; a kernel
         that inlines it holds a copy of its body (in numba's cache too, as it holds the code
         of every kernel it calls).
+    zero_divisions : bool
+        Whether a division by zero raises ZeroDivisionError, as in Python (numba's 'python'
+        error model), or gives inf or nan, as in NumPy ('numpy'), in this kernel's code and
+        the code it inlines. Off only where every divisor is non-zero by construction: a
+        raising division is a way out of the kernel, past which numba cannot drop the
+        reference counting of the arrays an inlined step takes (see arc_scan's ``_held``).
 
     Returns
     -------
@@ -87,7 +93,8 @@ def kernel(function=None, *, inline=False):
         without ``function``, the decorator that makes it.
 
     """
-    options = {'cache': True, 'nogil': True, 'inline': 'always' if inline else 'never'}
+    options = {'cache': True, 'nogil': True, 'inline': 'always' if inline else 'never',
+               'error_model': 'python' if zero_divisions else 'numpy'}
     if function is None:
         return numba.njit(**options)
     return numba.njit(**options)(function)

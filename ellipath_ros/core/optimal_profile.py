@@ -646,7 +646,7 @@ def _with_lines(planner, speed_cap, arc_rows, entry, exit_state):
 
 # -- the kernels that run the scans (see arc_scan's layouts) ----------------------------------
 
-@kernel
+@kernel(zero_divisions=False)
 def _scan_both(forward_scanner, backward_scanner, forward, backward, length, search, room):
     """
     Advance the slower of the two scans until their speed curves cross, then ``room`` more.
@@ -795,7 +795,7 @@ def _tops(states, count, other, other_count, length):
     return False
 
 
-@kernel
+@kernel(zero_divisions=False)
 def _add_room(forward_scanner, backward_scanner, forward, backward, steps):
     """Advance both scans ``steps`` past their crossing (no backing up past it)."""
     forward_table, forward_constants, forward_factor, forward_budget = forward_scanner
