@@ -803,12 +803,17 @@ def _add_room(forward_scanner, backward_scanner, forward, backward, steps):
     forward_states, forward_info, forward_floats = forward
     backward_states, backward_info, backward_floats = backward
     for _ in range(steps):
-        if _advance(forward_table, forward_constants, forward_factor, forward_budget,
-                    forward_states, forward_info, forward_floats, False) == _OUT_OF_STEPS:
-            return _OUT_OF_STEPS
-        if _advance(backward_table, backward_constants, backward_factor, backward_budget,
-                    backward_states, backward_info, backward_floats,
-                    False) == _OUT_OF_STEPS:
+        # Both steps, then their results: a branch on the first right behind it would split
+        # that inlined step's end, and numba's reference counting of its arrays would stay
+        # (see arc_scan's _held). Past the budget's end the backward step changes at most the
+        # budget and that scan's status, which nothing reads: the plan gives up on the scans.
+        forward_done = _advance(forward_table, forward_constants, forward_factor,
+                                forward_budget, forward_states, forward_info, forward_floats,
+                                False)
+        backward_done = _advance(backward_table, backward_constants, backward_factor,
+                                 backward_budget, backward_states, backward_info,
+                                 backward_floats, False)
+        if forward_done == _OUT_OF_STEPS or backward_done == _OUT_OF_STEPS:
             return _OUT_OF_STEPS
     return _STOPPED
 
