@@ -109,6 +109,7 @@ from ellipath_ros.core.sequencing import PlannedMotion
 from ellipath_ros.core.sequencing import PosePairing
 from ellipath_ros.core.sequencing import QueueFullError
 from ellipath_ros.core.sequencing import Sequencer
+from ellipath_ros.executor import InlineGroupExecutor
 from ellipath_ros.malloc_policy import MALLOC_TRIM_PERIOD
 from ellipath_ros.malloc_policy import release_free_memory
 from ellipath_ros.malloc_policy import set_malloc_policy
@@ -125,7 +126,6 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
@@ -141,9 +141,10 @@ from visualization_msgs.msg import MarkerArray
 
 NODE_NAME = 'ellipath_node'
 
-# Threads of the executor in main(): one per callback group (intake, joint states, and the
-# default group that serves the parameter services and clear_queue). Planning and release
-# run in threads of their own, so intake never waits behind a plan.
+# Pool threads of the executor in main(): one per callback group other than intake's (joint
+# states, conveyor_twist, and the default group that serves the parameter services and
+# clear_queue). Intake runs in main()'s thread itself (see ellipath_ros.executor); planning
+# and release run in threads of their own, so intake never waits behind a plan.
 EXECUTOR_THREADS = 3
 # How long shutdown waits for the planning and release threads (a plan in progress) [s].
 SHUTDOWN_WAIT = 5.0
@@ -294,10 +295,11 @@ class EllipathNode(Node):
         # The pose topics share one mutually exclusive group: their order is kept and the
         # pairing state needs no lock. Joint states have a group of their own so they are
         # stored while intake runs.
-        intake_group = MutuallyExclusiveCallbackGroup()
-        # Held by the intake callbacks and report_stop: rclpy's executor shutdown does not wait
-        # for the callbacks already handed to its thread pool. Once report_stop has run,
-        # intake is closed.
+        # main() runs this group's callbacks in its own thread (InlineGroupExecutor).
+        intake_group = self.intake_group = MutuallyExclusiveCallbackGroup()
+        # Held by the intake callbacks and report_stop, so that intake is closed once
+        # report_stop has run whatever thread an executor runs intake in (rclpy's
+        # MultiThreadedExecutor's shutdown does not wait for its pool's callbacks).
         self._intake_lock = threading.RLock()
         self._intake_closed = False
         pick_place = self.create_subscription(PoseArray, 'pick_place', self._on_pick_place,
@@ -1327,14 +1329,16 @@ def main(args=None, early_signals=()):
             f'{signal.Signals(early_signals[0]).name} during start-up: not starting')
         stop.set()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    # Multi-threaded so that intake, joint states and the services are served concurrently
-    # (see EXECUTOR_THREADS); planning and release have threads of their own.
-    executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS)
+    executor = None
     exit_code = 0
     try:
         if not stop.is_set():  # else a signal came during start-up: no node
             node = EllipathNode()
             freeze_start_up_objects()
+            # Intake in this thread, the other groups in a pool (EXECUTOR_THREADS), so that
+            # intake, joint states and the services are served concurrently; planning and
+            # release have threads of their own.
+            executor = InlineGroupExecutor([node.intake_group], EXECUTOR_THREADS)
             executor.add_node(node)
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
@@ -1348,7 +1352,8 @@ def main(args=None, early_signals=()):
             # First the node's own threads (waiting for a plan in progress), so that none of
             # them publishes or logs while the executor and the context go down.
             node.stop_workers()
-        executor.shutdown()
+        if executor is not None:
+            executor.shutdown()
         if node is not None and node.context.ok():
             try:
                 node.report_stop()

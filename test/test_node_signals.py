@@ -15,12 +15,13 @@
 """
 ONE signal stops ellipath_node: exit status 0, no traceback, idle or while a plan runs.
 
-Each case starts ``python -m ellipath_ros.node`` (the multi-threaded executor of main()),
-waits for its ``ready`` log line, sends exactly one SIGINT or SIGTERM at some moment and
-expects the process to end within STOP_TIMEOUT. The idle cases run side by side, each node
-in a namespace of its own. In the planning case a pick and a place are sent, the signal
-follows the place while the (deliberately slow) plan runs: the node finishes the plan but
-releases nothing once told to stop, so the robot does not start a new move after the stop.
+Each case starts ``python -m ellipath_ros.node`` (the executor of main(): intake in its
+thread, the other callback groups in a pool), waits for its ``ready`` log line, sends exactly
+one SIGINT or SIGTERM at some moment and expects the process to end within STOP_TIMEOUT. The
+idle cases run side by side, each node in a namespace of its own. In the planning case a pick
+and a place are sent, the signal follows the place while the (deliberately slow) plan runs: the
+node finishes the plan but releases nothing once told to stop, so the robot does not start a
+new move after the stop.
 The long statistical check (hundreds of runs) is scripts/signal_stop_check.py.
 """
 

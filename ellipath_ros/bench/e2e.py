@@ -15,29 +15,30 @@
 """
 End-to-end latency: a place pose published by one process, its trajectory received by another.
 
-``ellipath_node`` runs as a subprocess (this package's code, the node's default parameters) in
-the namespace ``/ellipath_bench_<pid>`` on the bench's ROS domain, with DDS on this host
+``ellipath_node`` runs as a subprocess (this package's code, started as the ``ellipath_node``
+command starts it, ``python -m ellipath_ros.node_entry``; the node's default parameters) in the
+namespace ``/ellipath_bench_<pid>`` on the bench's ROS domain, with DDS on this host
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``). This process sends the pairs that the in-process
-benchmark planned, in the same order, so the node plans the very same requests (its start is
-the last place, as in-process; no joint states are published). For each pair it publishes the
-pick, waits ``PICK_LEAD`` (pick and place travel on separate topics and could overtake each
-other), publishes the place and measures, on its steady clock, the time until its subscription
-callback has the trajectory. The trajectory is taken serialized (``raw``), as it arrived, and
-deserialized after the clock is read: building its Python objects (about 1.5 ms for 80
-points in rclpy) is this client's cost, not the node's; a controller in C++ deserializes it
-in microseconds. The next pair goes out only after that trajectory's duration and
-``IDLE_MARGIN`` have elapsed: every pair finds the robot idle, so the figure is the planner's
-answer to a fresh pair (publish, DDS, plan, message, DDS, callback), never time spent waiting
-behind a running trajectory. One warm-up pair (from the home position back to it) goes first
-and is not counted.
+benchmark planned, in the same order, so the node plans the very same requests (its start is the
+last place, as in-process; no joint states are published). For each pair it publishes the pick,
+builds the place's message, waits ``PICK_LEAD`` (pick and place travel on separate topics and could
+overtake each other), publishes the place and measures, on its steady clock, the time until its
+subscription callback has the trajectory. The trajectory is taken serialized (``raw``), as it
+arrived, and deserialized after the clock is read: building its Python objects (about 1.5 ms for 80
+points in rclpy) is this client's cost, not the node's; a controller in C++ deserializes it in
+microseconds. The next pair goes out only after that trajectory's duration and ``IDLE_MARGIN`` have
+elapsed: every pair finds the robot idle, so the figure is the planner's answer to a fresh pair
+(publish, DDS, plan, message, DDS, callback), never time spent waiting behind a running trajectory.
+One warm-up pair (from the home position back to it) goes first and is not counted.
 
 Beside each time, the node's own ``plan_time`` of that pair (its ``released`` status: the
 plan, the message and its check, in the node) gives the time spent outside the planner:
 intake, the hand-overs between the node's threads, DDS both ways and this client's callback.
 The planner may run slower in the node than in a tight loop here, which the difference keeps
-apart: after the robot's idle time between pairs the caches are cold (in one process, a plan
-after such a pause took about 10 % more CPU time), and until this round every plan in the
-node also faulted in hundreds of fresh pages (see the node's MALLOC_TRIM_PERIOD).
+apart: after the robot's idle time between pairs the caches are cold (in one process, without
+ROS, the bench's first requests took 7.1-7.6 ms of thread CPU at the median back to back and
+10.7-11.1 ms each after a 0.6 s sleep; in the node, the plan's wall time is its thread CPU
+time within 0.4 ms at the median: it does not wait for a core).
 """
 
 import os
@@ -61,7 +62,11 @@ STOP_TIMEOUT = 10.0  # s, for the node to exit after SIGINT
 DISCOVERY_SETTLE = 1.0  # s
 PICK_LEAD = 0.02  # s, pick before place
 IDLE_MARGIN = 0.02  # s, after the previous trajectory's end
-SPIN_STEP = 0.005  # s, longest single wait of the executor
+# Longest single wait of the client's executor [s]: a message wakes it at once, and the
+# step only bounds how late it sees the node's exit. At 5 ms it woke ~200 times a second for
+# nothing and took 6 % of a core (0.98 s of CPU in 15 s, 2,961 spins for 24 pairs) while the
+# node planned; at 0.1 s, 1.3 % (0.20 s, 254 spins).
+SPIN_STEP = 0.1
 # The warm-up pair goes to this offset from the home position and back.
 WARM_UP_OFFSET = np.array([0.1, 0.0, 0.0])  # m
 # Joint positions of the received last point and of the in-process plan agree to this.
@@ -169,8 +174,10 @@ def _start_node(namespace, domain_id, log):
                                                         env.get('PYTHONPATH')])))
     # Run from the package's root too: ``-m`` puts the working directory first on the path, and
     # a checkout there would be another copy, whose kernels numba compiles (and caches) anew.
+    # node_entry, as the ellipath_node command: its malloc policy is set before rclpy's import.
     return subprocess.Popen(
-        [sys.executable, '-m', 'ellipath_ros.node', '--ros-args', '-r', f'__ns:={namespace}'],
+        [sys.executable, '-m', 'ellipath_ros.node_entry',
+         '--ros-args', '-r', f'__ns:={namespace}'],
         env=env, stdout=log, stderr=subprocess.STDOUT, cwd=package_root)
 
 
@@ -245,9 +252,10 @@ class _Client:
         """Spin until ``condition()``; False after ``timeout`` s or once ``alive()`` fails."""
         deadline = time.perf_counter() + timeout
         while not condition():
-            if time.perf_counter() > deadline or not alive():
+            remaining = deadline - time.perf_counter()
+            if remaining < 0.0 or not alive():
                 return False
-            self._executor.spin_once(timeout_sec=SPIN_STEP)
+            self._executor.spin_once(timeout_sec=min(remaining, SPIN_STEP))
         return True
 
     def _pose(self, position):
@@ -269,9 +277,11 @@ class _Client:
 
         received, errors = len(self._received), len(self._errors)
         self._pick.publish(self._pose(pick))
+        # Built before the clock is read: this client's work, not the node's.
+        place_message = self._pose(place)
         self.spin_until(lambda: False, PICK_LEAD)
         sent = time.perf_counter()
-        self._place.publish(self._pose(place))
+        self._place.publish(place_message)
 
         def answered():
             return len(self._received) > received or len(self._errors) > errors
