@@ -24,20 +24,31 @@ wheels) and is the rosdep key ``python3-numba`` on Debian and Ubuntu.
 
 Kernels are compiled on first call and cached on disk (numba's cache: beside the module
 when that directory is writable, else the user's cache directory), so a process pays the
-compilation once per installed version. ``fastmath`` stays off: the kernels do IEEE
-arithmetic in the order written, so their results equal the plain-Python ones bit for bit.
-``nogil`` lets the node's other callbacks run while a plan is computed. To run every kernel
-as the plain Python it is written in (debugging, coverage), set ``NUMBA_DISABLE_JIT=1``.
+compilation once per installed version. numba keys a kernel's cache on its own source file
+only, yet a kernel's compiled code holds every kernel it calls or inlines, from other modules
+too: after a change to one module alone (a reinstall, a checkout of another branch), its
+callers in the other modules would load their old code. Each kernel's cache is therefore keyed
+on every source file of its package as well (:class:`_PackageKeyedCache`).
+
+``fastmath`` stays off: the kernels do IEEE arithmetic in the order written, so their results
+equal the plain-Python ones bit for bit. ``nogil`` lets the node's other callbacks run while a
+plan is computed. To run every kernel as the plain Python it is written in (debugging,
+coverage), set ``NUMBA_DISABLE_JIT=1``.
 """
 
 import dataclasses
+import functools
+import hashlib
+from pathlib import Path
 import time
 
 import numba
+from numba.core.caching import FunctionCache
+from numba.core.dispatcher import Dispatcher
 
 from .errors import WorkspaceError
 
-__all__ = ['kernel', 'warm_up']
+__all__ = ['kernel', 'package_sources_digest', 'warm_up']
 
 # The requests that warm_up plans ((start, pick, place) [m] in the default robot's workspace,
 # and the settings changed), so that every kernel a plan calls from Python is called once with
@@ -93,11 +104,68 @@ def kernel(function=None, *, inline=False, zero_divisions=True):
         without ``function``, the decorator that makes it.
 
     """
-    options = {'cache': True, 'nogil': True, 'inline': 'always' if inline else 'never',
-               'error_model': 'python' if zero_divisions else 'numpy'}
     if function is None:
-        return numba.njit(**options)
-    return numba.njit(**options)(function)
+        return functools.partial(kernel, inline=inline, zero_divisions=zero_divisions)
+    compiled = numba.njit(nogil=True, inline='always' if inline else 'never',
+                          error_model='python' if zero_divisions else 'numpy')(function)
+    if isinstance(compiled, Dispatcher):  # not so under NUMBA_DISABLE_JIT
+        # What njit(cache=True) does (Dispatcher.enable_caching), with this module's cache.
+        compiled._cache = _PackageKeyedCache(function)
+    return compiled
+
+
+@functools.lru_cache(maxsize=None)
+def package_sources_digest(directory):
+    """
+    Return the SHA-256 digest of every ``*.py`` file in ``directory`` (names and contents).
+
+    Parameters
+    ----------
+    directory : str
+        The directory of a package's modules.
+
+    Returns
+    -------
+    bytes
+        Changes whenever a module of the package is added, removed, renamed or edited.
+
+    """
+    digest = hashlib.sha256()
+    for path in sorted(Path(directory).glob('*.py')):
+        digest.update(path.name.encode() + b'\0' + path.read_bytes() + b'\0')
+    return digest.digest()
+
+
+def _package_keyed(locator_class):
+    """Return a subclass of a numba cache locator whose stamp includes the package's sources."""
+    def get_source_stamp(self):
+        stamp = locator_class.get_source_stamp(self)
+        source = getattr(self, '_py_file', None)  # numba's locators of a source file have it
+        if source is None or not Path(source).is_file():
+            return stamp
+        return stamp, package_sources_digest(str(Path(source).parent))
+
+    return type(f'PackageKeyed{locator_class.__name__}', (locator_class,),
+                {'get_source_stamp': get_source_stamp})
+
+
+class _PackageKeyedCacheImpl(FunctionCache._impl_class):
+    """numba's cache implementation with every locator keyed on the package's sources."""
+
+    _locator_classes = [_package_keyed(locator_class)
+                        for locator_class in FunctionCache._impl_class._locator_classes]
+
+
+class _PackageKeyedCache(FunctionCache):
+    """
+    numba's on-disk cache of a kernel, invalid as soon as any module of its package changes.
+
+    numba compares the stamp stored in a cache index with the current one and discards the
+    index when they differ; the stamp here pairs numba's own (the kernel's file) with
+    :func:`package_sources_digest` of the kernel's package directory, read once per process.
+    """
+
+    _impl_class = _PackageKeyedCacheImpl
 
 
 def warm_up():
