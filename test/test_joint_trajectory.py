@@ -16,6 +16,7 @@
 
 from types import SimpleNamespace
 
+from ellipath_ros.core import joint_trajectory
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import UnreachableError
@@ -235,6 +236,41 @@ def test_minimal_knots_off_the_samples_and_below_the_table_tolerance():
     dense, _ = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=tolerance)
     assert times.size <= dense.time_from_start.size + 2
     assert_no_knot_can_be_dropped(traj, ARC, tolerance)
+
+
+def test_minimal_knots_evaluate_the_starting_knots_before_the_search(monkeypatch):
+    # Four samples 0.1 s apart: every other starting knot (50 ms apart) has no sample near.
+    # Their states are evaluated before the compiled search runs, so no run stops for one of
+    # them, and the knots are those the search finds when it stops for them itself (below the
+    # planned table's tolerance, as above).
+    grid = np.linspace(0.0, ARC.duration, 4)
+    samples = MotionSamples(ARC, GEOMETRY, grid, ARC.state_at(grid))
+    runs = []
+    search = joint_trajectory._search_knots
+
+    def recorded(initial, *arguments):
+        result = search(initial, *arguments)
+        runs.append((initial, result))
+        return result
+
+    monkeypatch.setattr(joint_trajectory, '_search_knots', recorded)
+    traj, reported = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=5e-6, samples=samples)
+    initial = runs[0][0]
+    assert initial.size > grid.size
+    for _, (status, *_, wanted, _, _, _) in runs:
+        assert status != joint_trajectory._NEEDS_STATES or not np.isin(wanted, initial).any()
+    # The same knots when the search is handed no starting state and stops for them.
+    monkeypatch.setattr(joint_trajectory, '_cells', lambda times: (
+        np.full(times.size, -np.inf), np.full(times.size, np.inf)))
+    runs.clear()
+    unaided, unaided_error = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=5e-6,
+                                           samples=samples)
+    assert runs[0][1][0] == joint_trajectory._NEEDS_STATES
+    assert all(np.array_equal(mine, theirs) for mine, theirs in zip(
+        (traj.time_from_start, traj.positions, traj.velocities, traj.accelerations),
+        (unaided.time_from_start, unaided.positions, unaided.velocities,
+         unaided.accelerations)))
+    assert reported == unaided_error
 
 
 def test_knot_count_estimate_adds_as_numpy_sum():

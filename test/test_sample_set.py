@@ -36,6 +36,32 @@ def planned_motion(config, pick, place):
                        speed_cap=_check_reach_and_speed_cap(path, config))
 
 
+def piece_times_by_arrays(bounds, counts):
+    """Return the times of ``_piece_sample_times`` by the NumPy formulas it was written in."""
+    epsilon = 1e-9 * float(bounds[-1])
+    starts, widths = bounds[:-1], np.diff(bounds)
+    interval = np.repeat(np.arange(starts.size), counts - 1)
+    first = np.cumsum(counts - 1) - (counts - 1)
+    step = np.arange(interval.size) - first[interval] + 1
+    inside = starts[interval] + widths[interval] * (step / counts[interval])
+    return np.sort(np.concatenate((inside, bounds[[0, -1]],
+                                   np.maximum(bounds[1:-1] - epsilon, 0.0),
+                                   np.minimum(bounds[1:-1] + epsilon, bounds[-1]))))
+
+
+def sequence_state_by_masks(sequence, t):
+    """Return ``_Sequence.state`` as a mask per law picks its times (its first formulas)."""
+    starts = np.cumsum([0.0] + [law.duration for law in sequence.laws])
+    which = np.clip(np.searchsorted(starts, t, side='right') - 1, 0, len(sequence.laws) - 1)
+    out = [np.empty_like(t) for _ in range(4)]
+    for index, law in enumerate(sequence.laws):
+        mask = which == index
+        if np.any(mask):
+            for target, value in zip(out, law.state(t[mask] - starts[index])):
+                target[mask] = value
+    return out
+
+
 def test_refined_peaks_take_a_vertex_between_a_pieces_last_two_samples():
     # Three samples of one piece; the parabola's vertex (value 3) lies between the last two,
     # so the middle sample is no local maximum. A quadratic is found exactly.
@@ -116,8 +142,7 @@ def test_compiled_default_samples_equal_the_array_formulas_bit_for_bit(join):
             period = max(motion_module._PIECE_PERIOD,
                          motion.duration / motion_module._METRICS_SAMPLES)
             counts = np.maximum(np.ceil(np.diff(bounds) / period), 2.0).astype(np.int64)
-            expected = np.minimum(motion_module._piece_sample_times(bounds, counts),
-                                  motion.duration)
+            expected = np.minimum(piece_times_by_arrays(bounds, counts), motion.duration)
             assert np.array_equal(t, expected)
             s, states, norms, peaks = motion_module._sampled(motion, t, bounds)
             path_s, velocity, acceleration, jerk = motion.path_state(t)
@@ -133,3 +158,31 @@ def test_compiled_default_samples_equal_the_array_formulas_bit_for_bit(join):
                 bounds[1:-1].copy(), rows, pieces)
             assert np.array_equal(pieces, np.searchsorted(bounds[1:-1], t, side='right'))
             assert np.array_equal(rows, np.vstack((path_s, velocity, acceleration, jerk)))
+
+
+def test_curvature_samples_and_states_equal_the_array_formulas_bit_for_bit():
+    # The sequence of laws of the curvature profile: each law's sample times, as the NumPy
+    # formulas give them, and its states at sorted, unsorted and repeated times, as a mask
+    # per law picks them; the bounds, kept once, are read-only.
+    config = dataclasses.replace(PlannerConfig(), **KINDS['curvature'])
+    rng = np.random.default_rng(3)
+    for pick, place in random_pairs(6, seed=9):
+        sequence = planned_motion(config, pick, place).law
+        assert isinstance(sequence, motion_module._Sequence)
+        for law in sequence.laws:
+            bounds = getattr(law, 'times', None)
+            if bounds is None:
+                bounds = law._hermite_table[0]
+            counts = np.full(bounds.size - 1, motion_module._PIECE_SAMPLES)
+            assert np.array_equal(law.sample_times(motion_module._PIECE_SAMPLES),
+                                  piece_times_by_arrays(bounds, counts))
+        times = sequence.bounds()[0]
+        assert not times.flags.writeable
+        duration = sequence.duration
+        for t in (np.sort(rng.uniform(0.0, duration, 500)), rng.uniform(0.0, duration, 500),
+                  np.concatenate((times - 1e-9 * duration, times + 1e-9 * duration)),
+                  np.array(sequence._starts), np.array([duration]),
+                  np.array([0.0, 0.0, duration, 0.5 * duration])):
+            expected = sequence_state_by_masks(sequence, t)
+            assert all(np.array_equal(mine, theirs) for mine, theirs in zip(
+                sequence.state(t), expected))

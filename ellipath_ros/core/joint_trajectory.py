@@ -1061,6 +1061,14 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     table = _planned_table(samples, accept)
     initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
     evaluated = _Evaluated()
+    # The starting knots no sample serves, evaluated before the search instead of in a rerun
+    # after its first stop: the states it would stop for (on 376 curvature legs, 165 first
+    # runs stopped there).
+    low, high = _cells(initial)
+    missing = ~samples._nearest(initial, low, high)[1]
+    if missing.any():
+        wanted = initial[missing]
+        evaluated.add_states(wanted, samples.states(wanted, low[missing], high[missing]))
     journal = np.empty(0)
     while True:
         status, times, q, qdot, qddot, error, wanted, low, high, journal = _search_knots(
@@ -1440,15 +1448,29 @@ def _refine(knots, errors, context, accept, shortest):
 
 @kernel
 def _prune(knots, errors, context, accept):
-    """Drop interior knots while the segment replacing one and its neighbours is accepted."""
+    """
+    Drop interior knots while the segment replacing one and its neighbours is accepted.
+
+    A round evaluates only the candidate segments that the knots it dropped made new: one
+    whose three knots were neighbours in the round before is that round's candidate, its
+    error (and the check points it stopped at) the same.
+    """
+    # The last round's candidates' errors, and which of its knots this round kept (none yet).
+    last_errors, kept = np.empty(0), np.empty(0, np.int64)
     while knots[0].size > 2:
         count = knots[0].size
         candidates = np.arange(count - 2)
         # The segment from c to c + 2 drops knot c + 1; one above accept is not needed whole.
-        status, merged_errors, need = _segment_errors(knots, candidates, candidates + 2,
-                                                      context, accept)
+        merged_errors = np.empty(count - 2)
+        known = np.zeros(count - 2, np.bool_)
+        if kept.size:
+            known = kept[2:] - kept[:-2] == 2
+            merged_errors[known] = last_errors[kept[:-2][known]]
+        fresh = candidates[~known]
+        status, fresh_errors, need = _segment_errors(knots, fresh, fresh + 2, context, accept)
         if status != _FOUND:
             return status, knots, errors, need
+        merged_errors[~known] = fresh_errors
         acceptable = np.flatnonzero(merged_errors <= accept)
         if acceptable.size == 0:
             break
@@ -1461,6 +1483,7 @@ def _prune(knots, errors, context, accept):
         errors = np.where(kept[1:] - left == 1, errors[np.minimum(left, count - 2)],
                           merged_errors[np.minimum(left, count - 3)])
         knots = (knots[0][kept], knots[1][kept], knots[2][kept], knots[3][kept])
+        last_errors = merged_errors
     return _FOUND, knots, errors, _no_need()
 
 

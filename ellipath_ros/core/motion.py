@@ -21,6 +21,7 @@ frame, SI units.
 """
 
 from dataclasses import dataclass, field, replace
+import functools
 import math
 
 import numpy as np
@@ -132,19 +133,11 @@ def _piece_sample_times(bounds, count):
 
     ``count`` is one number, or one per interval (K,), each >= 1. Each interior
     bound is taken 1e-9 of the whole span off on both sides (the law is the next
-    piece's at the bound itself), the ends exactly.
+    piece's at the bound itself), the ends exactly (:func:`_times_across`).
     """
-    epsilon = 1e-9 * float(bounds[-1])
-    starts, widths = bounds[:-1], np.diff(bounds)
-    counts = np.broadcast_to(np.asarray(count, dtype=np.int64), starts.shape)
-    # Interval i has counts[i] - 1 interior samples, at steps 1 .. counts[i] - 1.
-    interval = np.repeat(np.arange(starts.size), counts - 1)
-    first = np.cumsum(counts - 1) - (counts - 1)
-    step = np.arange(interval.size) - first[interval] + 1
-    inside = starts[interval] + widths[interval] * (step / counts[interval])
-    return np.sort(np.concatenate((inside, bounds[[0, -1]],
-                                   np.maximum(bounds[1:-1] - epsilon, 0.0),
-                                   np.minimum(bounds[1:-1] + epsilon, bounds[-1]))))
+    bounds = np.ascontiguousarray(bounds, dtype=float)
+    counts = np.broadcast_to(np.asarray(count, dtype=np.int64), (bounds.size - 1,))
+    return _times_across(bounds, np.ascontiguousarray(counts), math.inf)
 
 
 def _pieces_law(rows, s_offset=0.0):
@@ -171,39 +164,69 @@ class _Sequence:
     def duration(self):
         return float(sum(law.duration for law in self.laws))
 
+    @functools.cached_property
+    def _starts(self):
+        """Return the times [s] (K + 1,) where each law starts, and the end (read-only)."""
+        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
+        starts.setflags(write=False)
+        return starts
+
+    @functools.cached_property
+    def _bounds(self):
+        """Return :meth:`bounds`, computed once (read-only arrays)."""
+        times, lengths = [], []
+        for start, law in zip(self._starts, self.laws):
+            law_times, law_lengths = law.bounds()
+            times.append(start + law_times)
+            lengths.append(law_lengths)
+        bounds = np.concatenate(times), np.concatenate(lengths)
+        for values in bounds:
+            values.setflags(write=False)
+        return bounds
+
     def bounds(self):
         """
         Return the times [s] and path lengths [m] where each law starts, and the end.
 
         Within a law its own ``bounds()`` (:meth:`_JerkPieces.bounds`; the curvature
-        profile's arc law gives its ends).
+        profile's arc law gives its ends). Read-only: computed once, asked for by the
+        samples, the jerk steps and the path's marks.
         """
-        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
-        times, lengths = [], []
-        for start, law in zip(starts, self.laws):
-            law_times, law_lengths = law.bounds()
-            times.append(start + law_times)
-            lengths.append(law_lengths)
-        return np.concatenate(times), np.concatenate(lengths)
+        return self._bounds
 
     def sample_times(self, count):
         """Return sorted times [s]: each law's :meth:`sample_times`, its ends on both sides."""
-        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
+        starts = self._starts
         epsilon = 1e-9 * float(starts[-1])
         times = [start + np.clip(law.sample_times(count), epsilon, law.duration - epsilon)
                  for start, law in zip(starts, self.laws)]
         return np.sort(np.concatenate(times + [starts]))
 
     def state(self, t):
-        starts = np.cumsum([0.0] + [law.duration for law in self.laws])
-        which = np.clip(np.searchsorted(starts, t, side='right') - 1, 0, len(self.laws) - 1)
-        out = [np.empty_like(t) for _ in range(4)]
-        for index, law in enumerate(self.laws):
-            mask = which == index
-            if np.any(mask):
-                for target, value in zip(out, law.state(t[mask] - starts[index])):
-                    target[mask] = value
-        return tuple(out)
+        """
+        Return (s, v, a, j) at times ``t`` (N,): each time's law at its time from that law's start.
+
+        The law of a time is the last starting at or before it (the first for earlier
+        times). The times, sorted (most callers' are), are split into one slice per law:
+        one call of each law's ``state`` whatever the times (the values do not depend on
+        which other times a law is asked for at once).
+        """
+        starts = self._starts
+        order = None
+        if t.size > 1 and not np.all(t[1:] >= t[:-1]):
+            order = np.argsort(t, kind='stable')
+            t = t[order]
+        # Law i takes the times from the first at or after its start to the first at or after
+        # the next law's start; the first law those before, the last those after.
+        ends = np.searchsorted(t, starts[1:-1], side='left').tolist()
+        rows = np.empty((4, t.size))
+        for law, start, first, end in zip(self.laws, starts, [0] + ends, ends + [t.size]):
+            if end > first:
+                rows[:, first:end] = law.state(t[first:end] - start)
+        if order is not None:
+            sorted_rows, rows = rows, np.empty_like(rows)
+            rows[:, order] = sorted_rows
+        return tuple(rows)
 
 
 # -- the result -------------------------------------------------------------------------------
@@ -656,15 +679,30 @@ def _even_piece_times(bounds, period, duration):
     """
     Return :func:`_piece_sample_times` of ``bounds`` (K + 1,), ceil(width / period) (>= 2) each.
 
-    The same floating-point operations in the same order, so the same times bit for bit,
-    each at most ``duration``.
+    Each time at most ``duration``.
+    """
+    intervals = bounds.size - 1
+    counts = np.empty(intervals, np.int64)
+    for interval in range(intervals):
+        counts[interval] = max(math.ceil((bounds[interval + 1] - bounds[interval]) / period), 2)
+    return _times_across(bounds, counts, duration)
+
+
+@kernel
+def _times_across(bounds, counts, duration):
+    """
+    Return sorted times [s]: ``counts[i]`` (K,) even steps across interval i of ``bounds``.
+
+    Interval i of ``bounds`` (K + 1,) gets the interior steps 1 .. counts[i] - 1 at
+    ``start + width * (step / count)``; each interior bound is taken 1e-9 of the whole span
+    off on both sides (at most ``bounds[-1]``, at least 0), the ends exactly; each time at
+    most ``duration``. The floating-point operations of the NumPy formulas these times were
+    first written in, so the same times bit for bit, in one compiled pass.
     """
     intervals = bounds.size - 1
     epsilon = 1e-9 * bounds[-1]
-    counts = np.empty(intervals, np.int64)
     total = 2 * intervals
     for interval in range(intervals):
-        counts[interval] = max(math.ceil((bounds[interval + 1] - bounds[interval]) / period), 2)
         total += counts[interval] - 1
     t = np.empty(total)
     t[0] = bounds[0]
