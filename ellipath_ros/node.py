@@ -51,7 +51,8 @@ queued, else the end of the running motion, else the robot at rest) planned by t
 thread while no pair waits (:mod:`ellipath_ros.core.preplanning`); the pair then plans only
 its transfer leg if it starts within ``start_tolerance`` of that leg with the same pick and
 parameters. The 'planned' and 'released' statuses say whether it did
-(``approach_preplanned``); ``preplan_hits`` and ``preplan_misses`` count it.
+(``approach_preplanned``); every status counts the legs planned ahead (``preplan_legs``) and
+the place_pose pairs that used one or not (``preplan_hits``, ``preplan_misses``).
 
 Intake QoS (``INTAKE_QOS``): the pose topics are RELIABLE and KEEP_ALL, so DDS discards
 nothing the node has not read; when the node reads slower than a sender sends, the sender's

@@ -1271,7 +1271,7 @@ def expected_points(harness, start, pick, place):
 
 def preplanned_count(harness):
     """Return how many approach legs the node has planned ahead so far."""
-    return harness.node._approaches.counts()['preplanned']
+    return harness.node._approaches.counts()['legs']
 
 
 def send_pick_and_wait_for_its_approach(harness, pick, **pose_options):
@@ -1326,7 +1326,7 @@ def test_with_preplan_approach_false_nothing_is_planned_ahead(make_harness):
         assert status.level == DiagnosticStatus.OK
         assert values_of(status)['approach_preplanned'] == 'false'
         assert harness.idle()
-    assert harness.node._approaches.counts() == {'preplanned': 0, 'hits': 0, 'misses': 0}
+    assert harness.node._approaches.counts() == {'legs': 0, 'hits': 0, 'misses': 0}
     assert all(values['approach_preplanned'] == 'false'
                for values in map(values_of, harness.released_statuses()))
 

@@ -185,7 +185,7 @@ def test_a_pick_planned_ahead_and_paired_is_taken_by_its_pair():
     approach = cache.take(7, PICK, START, TOLERANCE, token)
     assert approach is not None and np.array_equal(approach.start, START)
     assert cache.take(7, PICK, START, TOLERANCE, token) is None, 'taken once'
-    assert cache.counts() == {'preplanned': 1, 'hits': 1, 'misses': 1}
+    assert cache.counts() == {'legs': 1, 'hits': 1, 'misses': 1}
     assert len(cache) == 0
 
 
@@ -200,7 +200,7 @@ def test_an_approach_for_another_pick_start_or_settings_is_a_miss(pick, start, o
     preplan(cache, START, token)
     cache.claim(None, 1)
     assert cache.take(1, pick, start, TOLERANCE, Settings() if other_token else token) is None
-    assert cache.counts() == {'preplanned': 1, 'hits': 0, 'misses': 1}
+    assert cache.counts() == {'legs': 1, 'hits': 0, 'misses': 1}
 
 
 def test_a_start_no_longer_predicted_or_new_settings_are_planned_again():
@@ -231,7 +231,7 @@ def test_a_failed_leg_is_not_planned_again_from_the_same_start_and_is_a_miss():
     assert cache.next_to_plan(START, TOLERANCE, token) is None and not cache.wanted()
     cache.claim('a', 1)
     assert cache.take(1, PICK, START, TOLERANCE, token) is None
-    assert cache.counts() == {'preplanned': 1, 'hits': 0, 'misses': 1}
+    assert cache.counts() == {'legs': 1, 'hits': 0, 'misses': 1}
 
 
 def test_picks_replaced_dropped_cleared_or_beyond_the_bound_lose_their_leg():
@@ -255,7 +255,7 @@ def test_picks_replaced_dropped_cleared_or_beyond_the_bound_lose_their_leg():
     cache.clear()  # parameters changed, queue cleared, belt moving
     assert len(cache) == 0 and not cache.wanted()
     assert cache.take(4, PICK, START, TOLERANCE, token) is None
-    assert cache.counts() == {'preplanned': 3, 'hits': 0, 'misses': 2}
+    assert cache.counts() == {'legs': 3, 'hits': 0, 'misses': 2}
     with pytest.raises(InvalidInputError, match='depth'):
         ApproachCache(0)
 

@@ -33,7 +33,7 @@ import numpy as np
 from .errors import InvalidInputError
 
 # What became of the pre-planned approaches; see ApproachCache.counts.
-APPROACH_COUNTERS = ('preplanned', 'hits', 'misses')
+APPROACH_COUNTERS = ('legs', 'hits', 'misses')
 
 
 class _Slot:
@@ -89,7 +89,7 @@ class ApproachCache:
         """
         Return the counters as a dict.
 
-        ``preplanned``: approach legs planned ahead (failed plans included); ``hits``: pairs
+        ``legs``: approach legs planned ahead (failed plans included); ``hits``: pairs
         given one by :meth:`take`; ``misses``: pairs given none (no leg ready: the place came
         first, the slot was dropped, the plan failed; or one for another start or other
         settings).
@@ -151,7 +151,7 @@ class ApproachCache:
         the same start (the pair's own plan reports the error).
         """
         with self._lock:
-            self._counts['preplanned'] += 1
+            self._counts['legs'] += 1
             slot.start, slot.token = np.array(start, dtype=float), token
             slot.approach, slot.attempted = approach, True
 
