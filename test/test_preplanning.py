@@ -177,10 +177,11 @@ def test_a_pick_planned_ahead_and_paired_is_taken_by_its_pair():
     cache, token = ApproachCache(4), Settings()
     assert not cache.wanted()
     cache.add((1, 0), PICK)
-    assert cache.wanted()
+    assert cache.wanted() and cache.waiting_picks == 1
     assert preplan(cache, START, token) == 1 and not cache.wanted()
     assert preplan(cache, START + [TOLERANCE / 2, 0.0, 0.0], token) == 0, 'still fits'
     cache.claim((1, 0), 7)
+    assert cache.waiting_picks == 0 and len(cache) == 1
     assert preplan(cache, HOME, token) == 0, 'claimed: no longer planned'
     approach = cache.take(7, PICK, START, TOLERANCE, token)
     assert approach is not None and np.array_equal(approach.start, START)

@@ -69,7 +69,7 @@ STOP_TIMEOUT = 10.0  # s, for the node to exit after SIGINT
 # Once this process sees the node's subscriptions, the node may not yet see its publishers
 # (discovery runs both ways) and would miss the first pick: wait this long before sending.
 DISCOVERY_SETTLE = 1.0  # s
-PICK_LEAD = 0.02  # s, pick before place
+PICK_LEAD = 0.02  # s, pick before place (the node plans the approach leg meanwhile)
 IDLE_MARGIN = 0.02  # s, after the previous trajectory's end
 # Longest single wait of the client's executor [s]: a message wakes it at once, and the
 # step only bounds how late it sees the node's exit. At 5 ms it woke ~200 times a second for

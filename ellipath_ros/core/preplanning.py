@@ -85,6 +85,12 @@ class ApproachCache:
         with self._lock:
             return len(self._pending) + len(self._claimed)
 
+    @property
+    def waiting_picks(self):
+        """Return the number of picks waiting for their place that have a slot."""
+        with self._lock:
+            return len(self._pending)
+
     def counts(self):
         """
         Return the counters as a dict.
