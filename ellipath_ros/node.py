@@ -45,6 +45,15 @@ pending pick. A place with no pick is rejected; a place consumes its pick either
 before it is rejected.
 ``pick_place`` needs no pairing.
 
+Pre-planned approach (parameter ``preplan_approach``, static belts): a pick_pose that waits
+for its place has its approach leg (from where the robot will be: the place of the last pair
+queued, else the end of the running motion, else the robot at rest) planned by the planning
+thread while no pair waits (:mod:`ellipath_ros.core.preplanning`); the pair then plans only
+its transfer leg if it starts within ``start_tolerance`` of that leg with the same pick and
+parameters. The 'planned' and 'released' statuses say whether it did
+(``approach_preplanned``); every status counts the legs planned ahead (``preplan_legs``) and
+the place_pose pairs that used one or not (``preplan_hits``, ``preplan_misses``).
+
 Intake QoS (``INTAKE_QOS``): the pose topics are RELIABLE and KEEP_ALL, so DDS discards
 nothing the node has not read; when the node reads slower than a sender sends, the sender's
 ``publish()`` blocks and then fails (back-pressure). Every message read is counted once in
@@ -103,7 +112,9 @@ from ellipath_ros.core.errors import require_point
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import check_reachable
 from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.planner import plan_approach
 from ellipath_ros.core.planner import plan_cycle
+from ellipath_ros.core.preplanning import ApproachCache
 from ellipath_ros.core.sequencing import check_start
 from ellipath_ros.core.sequencing import PlannedMotion
 from ellipath_ros.core.sequencing import PosePairing
@@ -173,6 +184,11 @@ DIAGNOSTICS_DEPTH = 1000
 # place_pose backlog in DDS (two histories of 5000, see INTAKE_QOS); picks whose place was
 # never sent wait too, until evicted. A waiting pick takes about 0.3 kB.
 PENDING_PICKS = 12_000
+# Most picks waiting for their place, and pairs waiting for their plan, whose approach leg is
+# planned ahead (preplan_approach); older ones are planned in one go. Only the picks whose
+# place comes next can gain, and each leg kept holds its path, motion and points (0.43 MB at
+# the median, 0.79 MB at most, over 39 legs of the bench's pairs, tracemalloc): a few suffice.
+PREPLANNED_PICKS = 8
 # Two topics keep no order between them: under load a place can be read before the pick sent
 # ahead of it (2 of 900 two-topic pairs in a 30-minute soak were rejected as unpaired so). A
 # place whose pick has not arrived (stamp pairing) waits this long [s] for it, then is
@@ -274,6 +290,7 @@ class EllipathNode(Node):
         depth = self._settings.queue_depth
         self._pairing = PosePairing()
         self._sequencer = Sequencer(depth)
+        self._approaches = ApproachCache(PREPLANNED_PICKS)
         # Notified on every joint state (the release thread may wait for a fresh one).
         self._joint_state_arrived = threading.Condition()
         self._latest_joint_state = None  # (JointState, time.monotonic() at arrival)
@@ -437,6 +454,8 @@ class EllipathNode(Node):
     def _apply_parameters(self, parameters):
         """Switch to the settings of the parameters just stored (validated above)."""
         self._settings = build_settings(self._current_values())
+        # A leg planned ahead with other parameters is never reused (the settings differ).
+        self._approaches.clear()
         changes = ', '.join(f'{parameter.name}={parameter.value!r}' for parameter in parameters)
         self.get_logger().info(f'parameters changed: {changes}')
 
@@ -632,35 +651,56 @@ class EllipathNode(Node):
         position = self._checked_pick('pick_pose.pose.position', pose_position(message),
                                       settings)
         # A pick it displaces is reported by _intake (PosePairing.take_notices).
-        held = self._pairing.add_pick(_stamp_key(message.header.stamp), position,
-                                      settings.pairing, PENDING_PICKS)
+        key = _stamp_key(message.header.stamp)
+        held = self._pairing.add_pick(key, position, settings.pairing, PENDING_PICKS)
+        for dropped in self._pairing.take_dropped_keys():
+            self._approaches.discard(dropped)
         if held is not None:
             # Its place was read first and waited for it: the pair is the place's.
             place, latch_time = held
             self._submit(position, place, 'place_pose', latch_time)
+        elif settings.preplan_approach and not self._conveyor(settings).moving:
+            # Planned by the planning thread (none here: intake must stay quick).
+            self._approaches.add(PosePairing.key(key, settings.pairing), position)
+            self._sequencer.wake()
 
     def _take_place(self, message, settings):
         """Pair a place pose with its pick and queue the pair (or hold it for its pick)."""
         key = _stamp_key(message.header.stamp)
         pick = self._pairing.take_pick(key, settings.pairing, PLACE_WAIT, PENDING_PICKS)
-        self._checked_frame('place_pose', message.header.frame_id, settings)
-        place = self._checked_point('place_pose.pose.position', pose_position(message),
-                                    settings)
-        # With stamp pairing the place's stamp is the pick's: the time the object was there.
-        latch_time = self._latch_time(message.header.stamp)
-        if pick is None:
-            self._pairing.hold_place(key, (place, latch_time), time.monotonic(), PLACE_WAIT)
-            return
-        self._submit(pick, place, 'place_pose', latch_time)
+        request = None
+        try:
+            self._checked_frame('place_pose', message.header.frame_id, settings)
+            place = self._checked_point('place_pose.pose.position', pose_position(message),
+                                        settings)
+            # With stamp pairing the place's stamp is the pick's: the time the object was
+            # there.
+            latch_time = self._latch_time(message.header.stamp)
+            if pick is None:
+                self._pairing.hold_place(key, (place, latch_time), time.monotonic(),
+                                         PLACE_WAIT)
+                return
+            request = self._submit(pick, place, 'place_pose', latch_time)
+        finally:
+            if pick is not None:
+                # The pick's approach planned ahead, if any, goes with its pair; with a pair
+                # rejected, away.
+                self._approaches.claim(PosePairing.key(key, settings.pairing),
+                                       None if request is None else request.number)
 
     def _submit(self, pick, place, topic, latch_time):
-        """Queue a pair of ``topic``; a full queue's rejection goes into the next status."""
+        """
+        Queue a pair of ``topic``; return its PairRequest, or None if a full queue rejects it.
+
+        A full queue's rejection goes into the next status.
+        """
         try:
-            self._sequencer.submit(pick, place, topic, latch_time)
+            return self._sequencer.submit(pick, place, topic, latch_time)
         except QueueFullError as error:
             self._log_rejection(f'{topic} rejected: {error}')
             numbers, _ = self._queue_full.setdefault(topic, ([], str(error)))
             numbers.append(error.pair)
+            return None
 
     def _expire_places(self):
         """Reject, each with a status, the places whose pick did not come in PLACE_WAIT."""
@@ -682,6 +722,8 @@ class EllipathNode(Node):
     def _on_clear_queue(self, request, response):
         """Drop every pair waiting or held; the running trajectory goes on."""
         dropped = self._sequencer.clear()
+        # The legs planned ahead start where the dropped pairs would have left the robot.
+        self._approaches.clear()
         response.success = True
         response.message = (f'clear_queue: dropped {len(dropped)} pairs {dropped}; the '
                             'running trajectory is not touched')
@@ -704,7 +746,10 @@ class EllipathNode(Node):
             # On a moving belt, the pair latched first: the core's 'latch' order (see
             # Sequencer.take_for_planning). Planning every waiting pair to take the one whose
             # cycle ends first ('soonest') would cost a belt plan per waiting pair per pick.
-            taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving)
+            self._preplan(settings, conveyor)
+            # Back for a pick to pre-plan as soon as one comes (queued pairs still first).
+            taken = self._sequencer.next_to_plan(WORKER_POLL, by_latch=conveyor.moving,
+                                                 until=self._approaches.wanted)
             if taken is not None:
                 self._plan_queued(*taken)
                 # After its statuses: the motion is already on its way (see
@@ -740,6 +785,42 @@ class EllipathNode(Node):
                 'kind': 'requeued', 'requeued_pairs': ' '.join(map(str, numbers)),
                 **self._queue_values()})
 
+    def _preplan(self, settings, conveyor):
+        """
+        Plan the approach legs of the picks waiting for their place, while no pair waits.
+
+        Oldest pick first, each from where its pair would start now (the queue's tail, else
+        the robot at rest); a leg already planned from there (within start_tolerance) with
+        these settings is kept. On a moving belt none (the approach depends on the latch time
+        and the belt): every leg is dropped. A failed plan is kept as failed, not reported:
+        the pair's own plan reports it.
+        """
+        if not settings.preplan_approach or conveyor.moving:
+            self._approaches.clear()
+            return
+        if not self._approaches.waiting_picks:
+            return  # nothing to plan: not even the start is looked up
+        # Each waiting pick at most once per call (a start that keeps moving, a robot moved
+        # by hand, does not keep this thread here).
+        for _ in range(PREPLANNED_PICKS):
+            if self._sequencer.stopped or self._sequencer.waiting:
+                return
+            start = self._sequencer.predicted_start()
+            if start is None:
+                start = self._start_position(settings)[0]
+            wanted = self._approaches.next_to_plan(start, settings.start_tolerance, settings)
+            if wanted is None:
+                return
+            slot, pick = wanted
+            try:
+                approach = plan_approach(start, pick, settings.planner)
+            except EllipathError:
+                approach = None  # the pair's own plan reports it, if the pair comes
+            except Exception as error:  # a bug in a pre-plan must not stop the thread
+                approach = None
+                self._report_internal('pick_pose', error)
+            self._approaches.store(slot, start, settings, approach)
+
     def _plan_queued(self, request, start):
         """Plan one queued pair from ``start`` (None: where the robot is) and hold it."""
         settings = self._settings
@@ -748,7 +829,12 @@ class EllipathNode(Node):
                 start, start_source = self._start_position(settings)
             else:
                 start_source = 'queue_tail'
-            motion = self._plan(request, start, start_source, settings)
+            approach = None
+            if (request.topic == 'place_pose' and settings.preplan_approach
+                    and not self._conveyor(settings).moving):
+                approach = self._approaches.take(request.number, request.pick, start,
+                                                 settings.start_tolerance, settings)
+            motion = self._plan(request, start, start_source, settings, approach=approach)
         except EllipathError as error:
             if not self._sequencer.plan_failed(error.kind):
                 return  # cleared while planned: the clear_queue status names it
@@ -764,6 +850,7 @@ class EllipathNode(Node):
         values = dict(motion.details['metrics'])
         # plan_time: the whole plan, the message and its check included (as in 'released').
         values.update(topic=request.topic, pair=request.number, start_source=start_source,
+                      approach_preplanned=_flag(motion.details['approach_preplanned']),
                       plan_time=motion.plan_time,
                       receive_to_plan_latency=time.monotonic() - request.received)
 
@@ -788,12 +875,14 @@ class EllipathNode(Node):
         finally:
             motion.details['report_planned']()
 
-    def _plan(self, request, start, start_source, settings, belt_start=None):
+    def _plan(self, request, start, start_source, settings, belt_start=None, approach=None):
         """
         Plan a pair from ``start``; return the PlannedMotion holding its message.
 
         On a moving belt the plan starts at a known time (node clock, s; ``belt_start``, or
         chosen by :meth:`_belt_start`), kept in ``details['belt_start']`` for the release.
+        Else ``approach``, the pair's approach leg planned ahead (from within
+        start_tolerance of ``start``), is used if given: the motion then starts at its start.
         """
         started = time.perf_counter()
         conveyor = self._conveyor(settings)
@@ -809,9 +898,14 @@ class EllipathNode(Node):
             finally:
                 self._belt_plan_times.append(time.perf_counter() - started)
             details = {'belt_start': start_time, 'belt_velocity': conveyor.velocity}
+            approach = None
         else:
             plan = plan_cycle(start, request.pick, request.place, settings.planner,
-                              pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell)
+                              pick_dwell=settings.pick_dwell, place_dwell=settings.place_dwell,
+                              approach=approach, start_tolerance=settings.start_tolerance)
+            if approach is not None:
+                # Where the motion really starts, for the start check at release.
+                start = approach.start
         message = serialized_joint_trajectory(plan.joint_trajectory, settings.frame_id)
         # Check what is actually sent, after the conversion to whole nanoseconds.
         validate_jtc(message.trajectory, expect_names=settings.planner.joint_names)
@@ -819,7 +913,8 @@ class EllipathNode(Node):
             request, message.trajectory, require_point('start', start), plan.end_position,
             time.perf_counter() - started,
             details={'message': message, 'plan': plan, 'metrics': plan.metrics,
-                     'start_source': start_source, **details})
+                     'start_source': start_source, 'approach_preplanned': approach is not None,
+                     **details})
 
     def _belt_lead(self):
         """Return how far ahead of now an idle belt pick planned now starts [s]."""
@@ -1090,6 +1185,8 @@ class EllipathNode(Node):
                       for name, count in self._sequencer.counts().items())
         values.update((f'picks_{name}', count) for name, count in self._pairing.counts().items())
         values['places_waiting'] = self._pairing.waiting_places
+        values.update((f'preplan_{name}', count)
+                      for name, count in self._approaches.counts().items())
         return values
 
     def _release_values(self, release, check):
@@ -1097,11 +1194,12 @@ class EllipathNode(Node):
         motion = release.motion
         values = {'topic': motion.request.topic, 'pair': motion.request.number,
                   'start_source': motion.details['start_source'],
+                  'approach_preplanned': _flag(motion.details['approach_preplanned']),
                   'start_check': check.basis,
                   'start_distance': check.distance,
                   'plan_time': motion.plan_time, 'duration': motion.duration,
                   'receive_to_publish_latency': release.published - motion.request.received,
-                  'robot_waited_for_planner': str(release.waited_for_planner).lower()}
+                  'robot_waited_for_planner': _flag(release.waited_for_planner)}
         # Per belt pick: intercept time, position along the window and the margin left.
         values.update((key, value) for key, value in motion.details['metrics'].items()
                       if key.startswith('belt.'))
@@ -1174,6 +1272,11 @@ class _Once:
             if not self._done:
                 self._done = True
                 self._function()
+
+
+def _flag(value):
+    """Return a boolean as a status value: 'true' or 'false'."""
+    return 'true' if value else 'false'
 
 
 def _handover_rest(settings):

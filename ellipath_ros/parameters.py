@@ -44,6 +44,7 @@ from rclpy.parameter import Parameter
 
 # The ROS parameter type of each kind of setting.
 ROS_TYPES = {
+    'bool': Parameter.Type.BOOL,
     'double': Parameter.Type.DOUBLE,
     'integer': Parameter.Type.INTEGER,
     'string': Parameter.Type.STRING,
@@ -136,6 +137,8 @@ class NodeSettings:
         How long a conveyor_twist overrides conveyor_velocity [s].
     conveyor_replan_tolerance : float
         Belt velocity change that makes a held belt pick be re-planned at release [m/s].
+    preplan_approach : bool
+        Plan a pick's approach leg while its place is awaited.
 
     """
 
@@ -154,6 +157,7 @@ class NodeSettings:
     conveyor: Conveyor
     conveyor_twist_timeout: float
     conveyor_replan_tolerance: float
+    preplan_approach: bool
 
 
 def build_settings(values):

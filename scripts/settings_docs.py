@@ -56,6 +56,8 @@ def yaml_value(value):
     """Return ``value`` as YAML flow text (floats keep a dot so that YAML reads a float)."""
     if isinstance(value, (list, tuple)):
         return '[' + ', '.join(yaml_value(item) for item in value) + ']'
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
     if isinstance(value, float):
         text = repr(value)
         mantissa, _, exponent = text.partition('e')

@@ -30,6 +30,7 @@ import subprocess
 import sys
 
 from ellipath_ros.bench import format_report
+from ellipath_ros.bench.e2e import PICK_LEAD
 from ellipath_ros.bench.latency import latency_stats
 from ellipath_ros.bench.latency import MIN_HORIZONTAL_OFFSET
 from ellipath_ros.bench.latency import random_pairs
@@ -71,8 +72,8 @@ def report(ros_env, ros_domain_id):
 def test_the_json_object_has_the_required_keys(report):
     result, _ = report
     assert {'latency', 'cycle', 'executed', 'picks_per_min', 'machine'} <= set(result)
-    # Beside the required keys: e2e less the node's plan_time of each pair.
-    assert set(result['latency']) == LATENCY_KEYS | {'e2e_outside_plan_ms'}
+    # Beside the required keys: e2e less the node's plan_time of each pair, and from the pick.
+    assert set(result['latency']) == LATENCY_KEYS | {'e2e_outside_plan_ms', 'e2e_from_pick_ms'}
     for stats in result['latency'].values():
         assert set(stats) == {'p50', 'p99', 'max', 'n'}
     for row in result['cycle']:
@@ -103,6 +104,11 @@ def test_latencies_are_ordered_and_counted(report):
     outside = latency['e2e_outside_plan_ms']
     assert outside['n'] == latency['e2e_ms']['n']
     assert outside['max'] < latency['e2e_ms']['max']
+    # Each pick goes out at least PICK_LEAD before its place.
+    from_pick = latency['e2e_from_pick_ms']
+    assert from_pick['n'] == latency['e2e_ms']['n']
+    assert from_pick['p50'] >= latency['e2e_ms']['p50'] + PICK_LEAD * 1e3
+    assert 0 <= e2e['approach_preplanned'] <= latency['e2e_ms']['n']
 
 
 def test_executed_peaks_are_ratios_to_the_limits(report):

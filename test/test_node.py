@@ -37,6 +37,7 @@ from ellipath_ros.conversions import joint_trajectory_data
 from ellipath_ros.conversions import number_ranges
 from ellipath_ros.conversions import numbers_in_ranges
 from ellipath_ros.conversions import seconds_from_duration
+from ellipath_ros.conversions import serialized_joint_trajectory
 from ellipath_ros.core.controller import distance_to_paths
 from ellipath_ros.core.controller import executed_tcp
 from ellipath_ros.core.controller import JazzyJtcEmulator
@@ -48,6 +49,7 @@ from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import validate_jtc
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
+from ellipath_ros.core.planner import plan_cycle
 from ellipath_ros.core.sequencing import PairRequest
 from ellipath_ros.core.settings import default_values
 from ellipath_ros.node import EllipathNode
@@ -1254,3 +1256,101 @@ def test_a_belt_pick_late_at_publication_is_checked_again_never_sent_past(make_h
     stamp_ns = sent[0].header.stamp.sec * 1_000_000_000 + sent[0].header.stamp.nanosec
     assert abs(stamp_ns - motion.details['belt_start'] * 1e9) <= 1e3
     assert stamp_ns >= node.get_clock().now().nanoseconds
+
+
+# --- the approach planned ahead (preplan_approach) ----------------------------------------
+
+def expected_points(harness, start, pick, place):
+    """Return the points the node publishes for a cycle planned in one go from ``start``."""
+    settings = harness.node._settings
+    plan = plan_cycle(start, pick, place, settings.planner, pick_dwell=settings.pick_dwell,
+                      place_dwell=settings.place_dwell)
+    message = serialized_joint_trajectory(plan.joint_trajectory, settings.frame_id)
+    return deserialize_message(message.data, JointTrajectory).points
+
+
+def preplanned_count(harness):
+    """Return how many approach legs the node has planned ahead so far."""
+    return harness.node._approaches.counts()['legs']
+
+
+def send_pick_and_wait_for_its_approach(harness, pick, **pose_options):
+    """Send a pick and spin until the node has planned one more approach leg ahead."""
+    before = preplanned_count(harness)
+    harness.send_pick(pick, **pose_options)
+    assert harness.spin_until(lambda: preplanned_count(harness) > before)
+
+
+def planned_values(harness):
+    """Return the values of the 'planned' statuses so far."""
+    return [values_of(status) for status in harness.statuses if status.message == 'planned']
+
+
+def test_a_pick_then_its_place_gives_the_trajectory_planned_in_one_go(make_harness):
+    harness = make_harness()
+    send_pick_and_wait_for_its_approach(harness, PICK)
+    status, trajectory = harness.send_place(PLACE)
+    assert status.level == DiagnosticStatus.OK
+    assert trajectory.points == expected_points(harness, HOME, PICK, PLACE)
+    values = values_of(status)
+    assert values['approach_preplanned'] == 'true'
+    assert float(values['approach.plan_time']) > 0.0
+    assert values_of(harness.released_statuses()[-1])['approach_preplanned'] == 'true'
+    assert (values['preplan_hits'], values['preplan_misses']) == ('1', '0')
+    # The next pick is planned ahead from the place, where the robot stops.
+    assert harness.idle()
+    send_pick_and_wait_for_its_approach(harness, OTHER_PICK)
+    status, trajectory = harness.send_place(PICK)
+    assert values_of(status)['approach_preplanned'] == 'true'
+    assert trajectory.points == expected_points(harness, PLACE, OTHER_PICK, PICK)
+
+
+def test_a_parameter_change_between_pick_and_place_is_not_missed(make_harness):
+    harness = make_harness()
+    send_pick_and_wait_for_its_approach(harness, PICK)
+    assert harness.node.set_parameters([Parameter('max_speed', value=2.0)])[0].successful
+    status, trajectory = harness.send_place(PLACE)
+    assert status.level == DiagnosticStatus.OK
+    values = values_of(status)
+    assert values['approach_preplanned'] == 'false'
+    assert (values['preplan_hits'], values['preplan_misses']) == ('0', '1')
+    assert trajectory.points == expected_points(harness, HOME, PICK, PLACE), 'max_speed 2'
+
+
+def test_with_preplan_approach_false_nothing_is_planned_ahead(make_harness):
+    harness = make_harness({'preplan_approach': False})
+    for pick, place in ((PICK, PLACE), (OTHER_PICK, PICK)):
+        harness.send_pick(pick)
+        harness.spin_for(0.3)
+        status, _ = harness.send_place(place)
+        assert status.level == DiagnosticStatus.OK
+        assert values_of(status)['approach_preplanned'] == 'false'
+        assert harness.idle()
+    assert harness.node._approaches.counts() == {'legs': 0, 'hits': 0, 'misses': 0}
+    assert all(values['approach_preplanned'] == 'false'
+               for values in map(values_of, harness.released_statuses()))
+
+
+def test_a_pick_is_planned_ahead_from_the_place_of_the_pair_queued_before_it(make_harness):
+    # The first pair runs some 2 s (its dwell), the second is held until it has ended.
+    harness = make_harness({'place_dwell': 1.5, 'header_stamp': 'zero'})
+    second_place = (0.15, 0.10, -0.80)
+    harness.pick_place_publisher.publish(pose_array(PICK, PLACE))
+    harness.pick_place_publisher.publish(pose_array(OTHER_PICK, second_place))
+    sequencer = harness.node.sequencer
+    assert harness.spin_until(lambda: sequencer.counts()['planned'] == 2)
+    assert sequencer.running() is not None and sequencer.counts()['held'] == 1
+    send_pick_and_wait_for_its_approach(harness, PLACE, stamp=Time(sec=30))
+    harness.place_publisher.publish(pose(HOME, stamp=Time(sec=30)))
+    assert harness.spin_until(lambda: len(harness.released_statuses()) == 3)
+    harness.spin_for(SETTLE)
+    assert len(harness.trajectories) == 3
+    trajectory = harness.trajectories[-1]
+    values = planned_values(harness)[-1]
+    assert values['approach_preplanned'] == 'true' and values['start_source'] == 'queue_tail'
+    np.testing.assert_allclose(tcp_positions(trajectory)[0], second_place, atol=1e-9)
+    assert trajectory.points == expected_points(harness, second_place, PLACE, HOME)
+    # pick_place pairs are planned in one go, and count neither as a hit nor as a miss.
+    assert [item['approach_preplanned'] for item in planned_values(harness)] == [
+        'false', 'false', 'true']
+    assert (values['preplan_hits'], values['preplan_misses']) == ('1', '0')

@@ -35,7 +35,7 @@ NODE_KEYS = {'frame_id', 'pairing', 'pick_dwell', 'place_dwell', 'home_position'
              'joint_state_timeout', 'header_stamp', 'queue_depth', 'controller_period',
              'release_lead', 'start_tolerance', 'conveyor_velocity', 'place_conveyor_velocity',
              'tracking_window_upstream', 'tracking_window_downstream', 'conveyor_twist_timeout',
-             'conveyor_replan_tolerance'}
+             'conveyor_replan_tolerance', 'preplan_approach'}
 
 
 def _yaml_parameters(name):

@@ -31,9 +31,18 @@ elapsed: every pair finds the robot idle, so the figure is the planner's answer 
 (publish, DDS, plan, message, DDS, callback), never time spent waiting behind a running trajectory.
 One warm-up pair (from the home position back to it) goes first and is not counted.
 
+The node plans a pair's approach leg when its pick arrives (``preplan_approach``, on by
+default), in the ``PICK_LEAD`` before the place, so the time from the place covers the
+transfer leg only when that leg was ready: the number of pairs whose approach was planned
+ahead (the ``approach_preplanned`` of their ``released`` status) is counted, and the time
+from the pick's publication to the trajectory (``from_pick``, both legs, ``PICK_LEAD``
+included) is measured beside it, so that the gain is not mistaken for a faster planner.
+
 Beside each time, the node's own ``plan_time`` of that pair (its ``released`` status: the
-plan, the message and its check, in the node) gives the time spent outside the planner:
-intake, the hand-overs between the node's threads, DDS both ways and this client's callback.
+plan, the message and its check, in the node, after the place arrived; with the approach
+planned ahead, the transfer leg's part) gives the time spent outside the planner: intake, the
+hand-overs between the node's threads, DDS both ways, this client's callback, and any wait for
+an approach still being planned when the place came.
 The planner may run slower in the node than in a tight loop here, which the difference keeps
 apart: after the robot's idle time between pairs the caches are cold (in one process, without
 ROS, the bench's first requests took 7.1-7.6 ms of thread CPU at the median back to back and
@@ -60,7 +69,7 @@ STOP_TIMEOUT = 10.0  # s, for the node to exit after SIGINT
 # Once this process sees the node's subscriptions, the node may not yet see its publishers
 # (discovery runs both ways) and would miss the first pick: wait this long before sending.
 DISCOVERY_SETTLE = 1.0  # s
-PICK_LEAD = 0.02  # s, pick before place
+PICK_LEAD = 0.02  # s, pick before place (the node plans the approach leg meanwhile)
 IDLE_MARGIN = 0.02  # s, after the previous trajectory's end
 # Longest single wait of the client's executor [s]: a message wakes it at once, and the
 # step only bounds how late it sees the node's exit. At 5 ms it woke ~200 times a second for
@@ -74,6 +83,7 @@ SAME_PLAN_TOLERANCE = 1e-6  # rad
 _LEVEL_ERROR = b'\x02'
 _RELEASED = 'released'
 _PLAN_TIME_KEY = 'plan_time'
+_PREPLANNED_KEY = 'approach_preplanned'
 
 
 class EndToEndError(RuntimeError):
@@ -102,9 +112,11 @@ def measure_end_to_end(requests, home, settings, domain_id, budget_s, progress):
     Returns
     -------
     dict
-        ``times`` (list of s), ``plan_times`` (the node's plan_time of each, s; empty if a
-        status was missed), ``requested``, ``budget_reached``, ``mismatched`` (received
-        trajectories whose last point differs from the in-process plan's).
+        ``times`` (list of s), ``from_pick`` (pick published -> received, s, each),
+        ``plan_times`` (the node's plan_time of each, s; empty if a status was missed),
+        ``preplanned`` (pairs whose approach the node planned ahead; None if a status was
+        missed), ``requested``, ``budget_reached``, ``mismatched`` (received trajectories
+        whose last point differs from the in-process plan's).
 
     Raises
     ------
@@ -143,23 +155,28 @@ def measure_end_to_end(requests, home, settings, domain_id, budget_s, progress):
 def _measure(client, requests, budget_s, progress, node_process, log):
     """Send the requests' pairs one at a time while the robot is idle; collect the times."""
     deadline = time.perf_counter() + budget_s
-    times = []
+    times, from_pick = [], []
     mismatched = 0
     released_before = len(client.plan_times)
     for index, request in enumerate(requests):
         if time.perf_counter() > deadline:
             break
         progress('e2e', index, len(requests))
-        elapsed, message = client.send_pair(request.pick, request.place, node_process, log)
+        elapsed, since_pick, message = client.send_pair(request.pick, request.place,
+                                                        node_process, log)
         times.append(elapsed)
+        from_pick.append(since_pick)
         last = np.array(message.points[-1].positions)
         if not np.allclose(last, request.plan.joint_trajectory.positions[-1],
                            atol=SAME_PLAN_TOLERANCE):
             mismatched += 1
     progress('e2e', len(times), len(requests), finished=True)
     plan_times = client.plan_times[released_before:]
-    return {'times': times,
-            'plan_times': plan_times if len(plan_times) == len(times) else [],
+    preplanned = client.preplanned[released_before:]
+    complete = len(plan_times) == len(preplanned) == len(times)
+    return {'times': times, 'from_pick': from_pick,
+            'plan_times': plan_times if complete else [],
+            'preplanned': sum(preplanned) if complete else None,
             'requested': len(requests),
             'budget_reached': len(times) < len(requests), 'mismatched': mismatched}
 
@@ -226,6 +243,7 @@ class _Client:
         self._received = []  # (serialized message, time.perf_counter() in the callback)
         self._errors = []  # messages of the node's ERROR statuses
         self.plan_times = []  # plan_time [s] of the node's 'released' statuses, in order
+        self.preplanned = []  # their approach_preplanned, as booleans
         self._executor = SingleThreadedExecutor(context=context)
         self._executor.add_node(self.node)
 
@@ -239,8 +257,9 @@ class _Client:
             if bytes(status.level) == _LEVEL_ERROR:
                 self._errors.append(status.message)
             elif status.message == _RELEASED:
-                self.plan_times.extend(float(pair.value) for pair in status.values
-                                       if pair.key == _PLAN_TIME_KEY)
+                values = {pair.key: pair.value for pair in status.values}
+                self.plan_times.append(float(values[_PLAN_TIME_KEY]))
+                self.preplanned.append(values.get(_PREPLANNED_KEY) == 'true')
 
     def matched(self):
         """Whether the node subscribes to both poses and publishes trajectories."""
@@ -268,7 +287,9 @@ class _Client:
 
     def send_pair(self, pick, place, node_process, log):
         """
-        Send one pair to the idle node; return (place published -> received [s], trajectory).
+        Send one pair to the idle node; return its times and trajectory.
+
+        As (place published -> received [s], pick published -> received [s], trajectory).
 
         Returns once the trajectory has ended (its duration and ``IDLE_MARGIN`` after its
         reception), so that the next pair finds the robot idle.
@@ -276,7 +297,9 @@ class _Client:
         from rclpy.serialization import deserialize_message
 
         received, errors = len(self._received), len(self._errors)
-        self._pick.publish(self._pose(pick))
+        pick_message = self._pose(pick)
+        picked = time.perf_counter()
+        self._pick.publish(pick_message)
         # Built before the clock is read: this client's work, not the node's.
         place_message = self._pose(place)
         self.spin_until(lambda: False, PICK_LEAD)
@@ -297,7 +320,7 @@ class _Client:
         duration = message.points[-1].time_from_start
         idle_at = arrival + duration.sec + 1e-9 * duration.nanosec + IDLE_MARGIN
         self.spin_until(lambda: False, max(idle_at - time.perf_counter(), 0.0))
-        return arrival - sent, message
+        return arrival - sent, arrival - picked, message
 
     def close(self):
         """Stop the executor and destroy the node."""

@@ -30,7 +30,8 @@ from .joint_trajectory import JointTrajectoryData, TrajectoryRejectedError, vali
 from .kinematics import DeltaGeometry, forward_kinematics, inverse_kinematics, JointLimits
 from .limits import CartesianLimits
 from .motion import PROFILES, TimedMotion
-from .planner import CyclePlan, LegPlan, plan_cycle, plan_transfer, PlannerConfig
+from .planner import (
+    ApproachPlan, CyclePlan, LegPlan, plan_approach, plan_cycle, plan_transfer, PlannerConfig)
 from .settings import default_values, Setting, SETTINGS, validate
 from .timing import time_motion
 
@@ -38,6 +39,8 @@ __all__ = [
     # Planning a request: the entry points and their configuration and results.
     'plan_cycle',
     'plan_transfer',
+    'plan_approach',
+    'ApproachPlan',
     'PlannerConfig',
     'CyclePlan',
     'LegPlan',

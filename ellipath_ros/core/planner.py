@@ -18,6 +18,8 @@ Orchestration: pick and place in, a validated joint trajectory out.
 ``plan_transfer`` plans one leg (path, timing, kinematics, knots);
 ``plan_cycle`` chains the approach leg from where the robot is, the dwells
 and the transfer leg into one trajectory for the joint_trajectory_controller.
+The approach depends on the start and the pick only: ``plan_approach`` plans
+it ahead (the node, while it waits for the place) for ``plan_cycle`` to reuse.
 Both take a :class:`PlannerConfig`, which the CLI and the node build from the
 same flat parameter names (``PlannerConfig.from_flat``).
 """
@@ -295,6 +297,94 @@ class CyclePlan:
     joint_trajectory: JointTrajectoryData
     metrics: dict
     end_position: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ApproachPlan:
+    """
+    An approach leg planned ahead of its cycle (see :func:`plan_approach`).
+
+    Attributes
+    ----------
+    start, pick : numpy.ndarray
+        Where the leg starts and ends (the pick) [m], shape (3,).
+    config : PlannerConfig
+        The configuration it was planned with.
+    leg : LegPlan or None
+        The leg; None when the start is on the pick (no approach).
+    plan_time : float
+        Time spent planning it [s].
+
+    """
+
+    start: np.ndarray
+    pick: np.ndarray
+    config: PlannerConfig
+    leg: LegPlan | None
+    plan_time: float
+
+    def check_fits(self, start, pick, config, start_tolerance=0.0):
+        """
+        Raise unless this leg is the approach of a cycle from ``start`` to ``pick``.
+
+        The pick and the configuration must be the same, the start within
+        ``start_tolerance`` [m] of this leg's (the cycle then starts at this leg's).
+
+        Raises
+        ------
+        InvalidInputError
+            Naming what does not match: "expected X, got Y".
+
+        """
+        if not np.array_equal(self.pick, pick):
+            raise InvalidInputError(
+                f'approach: expected a leg to the pick {pick.tolist()}, got one to '
+                f'{self.pick.tolist()}')
+        distance = float(np.linalg.norm(self.start - start))
+        if distance > start_tolerance:
+            raise InvalidInputError(
+                f'approach: expected a leg from within {start_tolerance:g} m of the start '
+                f'{start.tolist()}, got one from {self.start.tolist()} ({distance:.6g} m away)')
+        if self.config is not config and self.config != config:
+            raise InvalidInputError(
+                f'approach: expected a leg planned with the configuration {config!r}, got one '
+                f'planned with {self.config!r}')
+
+
+def plan_approach(start, pick, config=None):
+    """
+    Plan the approach leg of a cycle: from ``start`` (where the robot will be) to ``pick``.
+
+    It lifts out of ``start`` as from a place and descends onto the pick (the clearances
+    swapped); none when the start is on the pick. :func:`plan_cycle` plans the same leg, or
+    takes this one.
+
+    Returns
+    -------
+    ApproachPlan
+
+    Raises
+    ------
+    EllipathError
+        As :func:`plan_transfer`; ``workspace`` when the start is outside the safe workspace.
+
+    """
+    started = time.perf_counter()
+    config = config or PlannerConfig()
+    start, pick = require_point('start', start), require_point('pick', pick)
+    return ApproachPlan(start, pick, config, _approach_leg(start, pick, config),
+                        time.perf_counter() - started)
+
+
+def _approach_leg(start, pick, config):
+    """Return the approach LegPlan from ``start`` to ``pick`` (checked points), or None."""
+    if np.linalg.norm(pick - start) <= _SAME_POINT:
+        return None
+    # The robot outside the safe workspace (moved there by hand) is not moved by a plan.
+    config.workspace.check(start, name='start')
+    # Lift out of wherever the robot is (as from a place), descend onto the pick.
+    return plan_transfer(start, pick, config, pick_clearance=config.place_clearance,
+                         place_clearance=config.pick_clearance, leg='approach')
 
 
 def _check_reach_and_speed_cap(path, config):
@@ -784,7 +874,8 @@ def _concatenate(first, second):
         np.vstack((first.accelerations, second.accelerations[1:])))
 
 
-def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0):
+def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0,
+               approach=None, start_tolerance=0.0):
     """
     Plan the motion from where the robot is, through the pick, to the place.
 
@@ -798,34 +889,42 @@ def plan_cycle(start, pick, place, config=None, pick_dwell=0.0, place_dwell=0.0)
         Defaults when omitted.
     pick_dwell, place_dwell : float
         Rest at the pick and at the place [s], in [0, 10].
+    approach : ApproachPlan, optional
+        The approach leg planned ahead (:func:`plan_approach`) for this ``pick`` and
+        ``config``: the cycle then starts at its start, and the plan is the one planned from
+        there in one go, bit for bit. Planned here when omitted.
+    start_tolerance : float
+        Largest distance of ``approach``'s start from ``start`` [m].
 
     Returns
     -------
     CyclePlan
+        Its metrics' ``plan_time`` is this call's; ``approach.plan_time`` is the approach
+        leg's, ``approach.preplanned`` says whether it was planned ahead.
 
     """
     started = time.perf_counter()
     config = config or PlannerConfig()
     start, pick, place, pick_dwell, place_dwell = _cycle_inputs(
         start, pick, place, pick_dwell, place_dwell)
+    if approach is not None:
+        approach.check_fits(start, pick, config, start_tolerance)
     transfer = plan_transfer(pick, place, config)
+    preplanned = approach is not None
+    if not preplanned:
+        approach = plan_approach(start, pick, config)
     legs = (transfer,)
     trajectory = transfer.joint_trajectory
-    if np.linalg.norm(pick - start) > _SAME_POINT:
-        # The robot outside the safe workspace (moved there by hand) is not moved by a plan.
-        config.workspace.check(start, name='start')
-        # Approach: lift out of wherever the robot is (as from a place), descend onto the pick.
-        approach = plan_transfer(start, pick, config, pick_clearance=config.place_clearance,
-                                 place_clearance=config.pick_clearance, leg='approach')
-        legs = (approach, transfer)
-        trajectory = _concatenate(_hold(approach.joint_trajectory, pick_dwell), trajectory)
+    if approach.leg is not None:
+        legs = (approach.leg, transfer)
+        trajectory = _concatenate(_hold(approach.leg.joint_trajectory, pick_dwell), trajectory)
     elif pick_dwell > 0.0:
         trajectory = _concatenate(_hold(_rest_point(trajectory), pick_dwell), trajectory)
     trajectory = on_whole_nanoseconds(_hold(trajectory, place_dwell))
     validate_jtc(trajectory, config.joint_names)
     plan_time = time.perf_counter() - started
     return CyclePlan(legs, trajectory, _LazyMetrics(functools.partial(
-        _cycle_metrics, legs, trajectory, plan_time)), place.copy())
+        _cycle_metrics, legs, trajectory, plan_time, approach, preplanned)), place.copy())
 
 
 def _cycle_inputs(start, pick, place, pick_dwell, place_dwell):
@@ -835,7 +934,7 @@ def _cycle_inputs(start, pick, place, pick_dwell, place_dwell):
             validate('place_dwell', place_dwell))
 
 
-def _cycle_metrics(legs, trajectory, plan_time):
+def _cycle_metrics(legs, trajectory, plan_time, approach, preplanned):
     """Return the flat diagnostics of a cycle: each leg's summary, prefixed, and the totals."""
     named = [('transfer', legs[-1])] + ([('approach', legs[0])] if len(legs) == 2 else [])
     metrics = {}
@@ -850,6 +949,9 @@ def _cycle_metrics(legs, trajectory, plan_time):
         'planned.joint_peak_accel': max(leg.joint_peak_accel for leg in legs),
         'plan_time': plan_time,
     })
+    if approach.leg is not None:
+        metrics.update({'approach.plan_time': approach.plan_time,
+                        'approach.preplanned': 'true' if preplanned else 'false'})
     return metrics
 
 

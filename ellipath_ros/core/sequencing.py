@@ -115,6 +115,7 @@ class PosePairing:
         self._mode = PAIRING_MODES[0]
         self._counts = dict.fromkeys(PICK_COUNTERS, 0)
         self._notices = []
+        self._dropped_keys = []
 
     def __len__(self):
         """Return the number of pending picks."""
@@ -146,20 +147,31 @@ class PosePairing:
         notices, self._notices = self._notices, []
         return notices
 
-    def _drop(self, kind, text):
+    def take_dropped_keys(self):
+        """Return the keys (see :meth:`key`) of the picks dropped since the last call."""
+        keys, self._dropped_keys = self._dropped_keys, []
+        return keys
+
+    def _drop(self, kind, key, text):
         self._counts[kind] += 1
         self._notices.append((f'pick_{kind}', text))
+        self._dropped_keys.append(key)
+
+    @staticmethod
+    def key(stamp, mode):
+        """Return the key under which a pick of ``stamp`` waits in ``mode``."""
+        return None if mode == 'sequence' else stamp
 
     def _key(self, stamp, mode):
-        """Return the key pairing a pick and a place in ``mode``."""
+        """Return the key pairing a pick and a place in ``mode``; a new mode drops every pick."""
         if mode != self._mode:
             for key in self._pending:
-                self._drop('cleared', f'pick_pose (stamp {key}) dropped: pairing changed from '
-                           f'{self._mode} to {mode}')
+                self._drop('cleared', key, f'pick_pose (stamp {key}) dropped: pairing changed '
+                           f'from {self._mode} to {mode}')
             self._pending.clear()
             self.expire_all_places(f'before the pairing changed from {self._mode} to {mode}')
             self._mode = mode
-        return None if mode == 'sequence' else stamp
+        return self.key(stamp, mode)
 
     def reject_pick(self):
         """Count a pick_pose that failed validation (the caller reports why)."""
@@ -181,14 +193,14 @@ class PosePairing:
             return place
         if key in self._pending:
             del self._pending[key]
-            self._drop('replaced',
+            self._drop('replaced', key,
                        'pick_pose replaced the pending pick, which had no place_pose yet'
                        if key is None else
                        f'pick_pose replaced the pending pick of the same stamp {key}')
         elif len(self._pending) >= depth:
             dropped, _ = self._pending.popitem(last=False)
-            self._drop('evicted', f'pick queue full ({depth} waiting): dropped the oldest '
-                       f'pick (stamp {dropped})')
+            self._drop('evicted', dropped, f'pick queue full ({depth} waiting): dropped the '
+                       f'oldest pick (stamp {dropped})')
         self._pending[key] = position
         return None
 
@@ -486,6 +498,12 @@ class Sequencer:
         return len(self._waiting) + (self._planning is not None) + len(self._held)
 
     @property
+    def waiting(self):
+        """Return the number of pairs waiting to be planned."""
+        with self._condition:
+            return len(self._waiting)
+
+    @property
     def stopped(self):
         """Return True once :meth:`stop` was called."""
         with self._condition:
@@ -623,18 +641,53 @@ class Sequencer:
             else:
                 request = self._waiting.popleft()
             self._planning, self._planning_cancelled = request, None
-            if self._held:
-                start = self._held[-1].end_position
-            elif self._releasing is not None:
-                start = self._releasing.end_position
-            elif self._last_release is not None and now < self._last_release.latest_end:
-                start = self._last_release.motion.end_position
-            else:
-                start = None
-            return request, start
+            return request, self._motions_end(now)
 
-    def next_to_plan(self, timeout, by_latch=False):
-        """Block up to ``timeout`` s for :meth:`take_for_planning`; None on timeout or stop."""
+    def _motions_end(self, now):
+        """
+        Return where the motions planned so far leave the robot [m], or None; lock held.
+
+        The end of the last held motion, else of the one being released, else of the
+        released one while it may run; None when the robot is at rest.
+        """
+        if self._held:
+            return self._held[-1].end_position
+        if self._releasing is not None:
+            return self._releasing.end_position
+        if self._last_release is not None and now < self._last_release.latest_end:
+            return self._last_release.motion.end_position
+        return None
+
+    def predicted_start(self, now=None):
+        """
+        Return the TCP [m] a pair submitted now would be planned from, or None.
+
+        The place of the last pair ahead of it (waiting or being planned: a cycle ends
+        exactly at its place), else what :meth:`take_for_planning` would give (None: the
+        robot at rest, where the caller must find out). Static picks: in latch order (a
+        moving belt) a pair may be planned before those waiting.
+        """
+        now = self.clock() if now is None else now
+        with self._condition:
+            if self._waiting:
+                return self._waiting[-1].place
+            if self._planning is not None:
+                return self._planning.place
+            return self._motions_end(now)
+
+    def wake(self):
+        """Wake the workers blocked in :meth:`next_to_plan` (to look at their ``until``)."""
+        with self._condition:
+            self._condition.notify_all()
+
+    def next_to_plan(self, timeout, by_latch=False, until=None):
+        """
+        Block up to ``timeout`` s for :meth:`take_for_planning`; None on timeout or stop.
+
+        ``until``: also None as soon as it returns true (called with the lock held, after
+        each wake-up, when no pair waits: it must be quick and take no lock of the caller
+        that is held while calling this object).
+        """
         deadline = time.monotonic() + timeout
         with self._condition:
             while not self._stopped:
@@ -642,7 +695,7 @@ class Sequencer:
                 if taken is not None:
                     return taken
                 remaining = deadline - time.monotonic()
-                if remaining <= 0.0:
+                if remaining <= 0.0 or (until is not None and until()):
                     return None
                 self._condition.wait(remaining)
         return None

@@ -35,7 +35,7 @@ import math
 from .errors import InvalidInputError, require_finite
 
 # Types of a setting, named as the ROS parameter types they become.
-KINDS = ('double', 'integer', 'string', 'double_array', 'string_array')
+KINDS = ('bool', 'double', 'integer', 'string', 'double_array', 'string_array')
 # Section titles, in order; each row names one by its key.
 SECTIONS = {
     'ros': 'ROS interface',
@@ -66,7 +66,7 @@ class Setting:
         Flat name, as the ROS parameter and in messages.
     kind : str
         One of :data:`KINDS`.
-    default : float or int or str or tuple
+    default : bool or float or int or str or tuple
         Default value (a tuple for the array kinds).
     unit : str
         SI unit, ``''`` for unitless values.
@@ -92,7 +92,7 @@ class Setting:
 
     name: str
     kind: str
-    default: float | int | str | tuple
+    default: bool | float | int | str | tuple
     unit: str
     description: str
     section: str
@@ -145,9 +145,10 @@ class Setting:
         """
         Return ``value`` checked against this row and converted to its kind, or raise.
 
-        Numbers must be finite and in range (an integer must be whole), strings among the
-        choices (or, without choices, non-empty). The elements of a ``double_array`` are
-        checked against the range; sizes of arrays are the owner's to check.
+        Booleans must be ``True`` or ``False``, numbers finite and in range (an integer
+        whole), strings among the choices (or, without choices, non-empty). The elements of
+        a ``double_array`` are checked against the range; sizes of arrays are the owner's to
+        check.
 
         Raises
         ------
@@ -155,6 +156,10 @@ class Setting:
             The message names the setting, what it allows and what it got.
 
         """
+        if self.kind == 'bool':
+            if not isinstance(value, bool):
+                raise InvalidInputError(f'{self.name}: expected true or false, got {value!r}')
+            return value
         if self.kind == 'string':
             if self.choices and value not in self.choices:
                 raise InvalidInputError(f'{self.name}: expected {self.allowed}, got {value!r}')
@@ -241,6 +246,12 @@ SETTINGS = (
          'release; also the longest wait at release for a joint state measured after the '
          'previous motion when the last one showed the robot off it; 0 never uses them',
          'ros', low=0.0, high=60.0),
+    _row('preplan_approach', 'bool', True, '',
+         'Plan the approach leg (from where the robot will be to the pick) when a pick_pose '
+         'arrives, while the node waits for its place_pose and no pair waits to be planned, '
+         'so that only the transfer leg is planned after the place; reused if the pair starts '
+         'within start_tolerance of it with the same pick and parameters (static belts '
+         'only; pick_place pairs are planned in one go)', 'ros'),
     # --- conveyor tracking ------------------------------------------------------------------
     _row('conveyor_velocity', 'double_array', (0.0, 0.0, 0.0), 'm/s',
          'Pick belt velocity (vx, vy, vz) in the base frame, speed at most 2 m/s; zero = '
