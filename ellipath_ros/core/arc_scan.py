@@ -41,13 +41,16 @@ Layouts (all float64 unless said otherwise):
 - budget, int64 shape (1,): the steps the plan may still take (shared by its two scanners);
 - states, shape (5, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state and the
   jerk s''' [m/s**3] of the step from each state to the next;
-- info, int64 shape (4,): the number of states, the status, the back-ups so far, whether
-  ``reading`` holds the table's reading at the last state;
+- info, int64 shape (5,): the number of states, the status, the back-ups so far, whether
+  ``reading`` holds the table's reading at the last state, the number of states known (held
+  from an earlier run of the scan, see :meth:`_Scanner.scan`: the steps up to there are
+  taken as they stand);
 - floats, shape (9,): the arc length at which the scan ends, then the reading (s, s', s'',
   kappa, dkappa/ds, cap, the middle and half width of the jerk range).
 """
 
 import math
+import struct
 
 import numpy as np
 
@@ -89,11 +92,16 @@ _STATUS_NAMES = ('live', 'end', 'speed', 'accel')
 # or the step budget ran out (the plan gives up on the scans).
 _STOPPED, _ADVANCED, _OUT_OF_STEPS = 0, 1, -1
 # Indices into a scan's info and floats, and into the constants.
-_COUNT, _STATUS, _FAILURES, _READ = 0, 1, 2, 3
+_COUNT, _STATUS, _FAILURES, _READ, _KNOWN = 0, 1, 2, 3, 4
 _END_AT, _READING = 0, 1
 _CELL, _SPEED_TARGET, _ACCEL_TARGET, _JERK_TARGET = 0, 1, 2, 3
 _ACCEL_SQUARED, _JERK_SQUARED, _SHARE, _TWO = 4, 5, 6, 7
 _CONSTANTS = 8
+
+
+# The key of a kept scan: its start (s, s', s''), the floats' bytes (-0.0 is not 0.0 in the
+# states the scan records).
+_THREE_FLOATS = struct.Struct('<3d')
 
 
 class _NoMotion(Exception):
@@ -136,9 +144,13 @@ class _Scanner:
 
     ``cell`` is the table's grid step [m]; ``budget`` is the step budget
     (int64 array of one value) shared with the plan's other scanner.
+
+    The scans it hands out are kept for a later scan from the same state (see :meth:`scan`).
+    A scan is done with once the scanner hands out the next one (the plan's stretches are
+    solved one after another, and a stretch uses its scans before it splits).
     """
 
-    __slots__ = ('table', 'constants', 'factor', 'budget')
+    __slots__ = ('table', 'constants', 'factor', 'budget', '_kept', '_handed')
 
     def __init__(self, table, cell, limits, budget):
         self.table = table
@@ -149,6 +161,9 @@ class _Scanner:
         self.constants = np.array(
             [cell, speed, accel, jerk, accel ** 2, jerk ** 2, _NORMAL_JERK_SHARE, 2.0])
         self.factor = np.ones(table.shape[1] + 1)
+        # The scans kept ({start key: scan}) and the one handed out last (or None).
+        self._kept = {}
+        self._handed = None
 
     @property
     def cell(self):
@@ -160,8 +175,30 @@ class _Scanner:
         return self.table, self.constants, self.factor, self.budget
 
     def scan(self, s, v, a, end):
-        """Return a new scan from (s, s', s'') to ``end``, with room for the budget's steps."""
-        return _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+        """
+        Return a scan from (s, s', s'') to ``end``, with room for the budget's steps.
+
+        A scan from that state handed out before is handed out again when no
+        scan of this scanner has backed up since it stepped: its steps, taken
+        on the same table and back-up shares, are what a new scan would take,
+        and it takes them again as they stand (see :func:`_advance`), spending
+        the budget as a new scan would. A back-up lowers the shares every kept
+        scan stepped with: they are dropped.
+        """
+        handed = self._handed
+        if handed is not None:
+            if handed.info[_FAILURES]:
+                self._kept.clear()
+            else:
+                self._kept[handed.key] = handed
+        key = _THREE_FLOATS.pack(s, v, a)
+        scan = self._kept.pop(key, None)
+        if scan is None:
+            scan = _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+        else:
+            scan.restart(end)
+        self._handed = scan
+        return scan
 
     def run(self, scan):
         """Advance ``scan`` until it stops; raise :class:`_NoMotion` if the budget runs out."""
@@ -180,12 +217,20 @@ class _Scan:
     ``_BACK_UP_LIMIT`` back-ups).
     """
 
-    __slots__ = ('states', 'info', 'floats')
+    __slots__ = ('states', 'info', 'floats', 'key')
 
     def __init__(self, s, v, a, end, capacity):
         # Floats whatever the caller holds: one compiled signature (the warm-up's).
         self.states, self.info, self.floats = _new_scan(
             float(s), float(v), float(a), float(end), int(capacity))
+        # Its start (see _Scanner.scan).
+        self.key = _THREE_FLOATS.pack(s, v, a)
+
+    def restart(self, end):
+        """Start the scan again towards ``end``, the states it took known (see _Scanner.scan)."""
+        info = self.info
+        info[_COUNT], info[_STATUS], info[_FAILURES], info[_READ] = 1, _LIVE, 0, 0
+        self.floats[_END_AT] = end
 
     def parts(self):
         """Return the scan as the kernels take it: (states, info, floats)."""
@@ -255,8 +300,8 @@ def _new_scan(s, v, a, end, capacity):
     """Return the (states, info, floats) of a scan from (s, s', s'') to ``end`` [m]."""
     states = np.empty((5, capacity))
     states[0, 0], states[1, 0], states[2, 0], states[3, 0] = 0.0, s, v, a
-    info = np.zeros(4, dtype=np.int64)
-    info[_COUNT] = 1
+    info = np.zeros(5, dtype=np.int64)
+    info[_COUNT] = info[_KNOWN] = 1
     floats = np.zeros(9)
     floats[_END_AT] = end
     return states, info, floats
@@ -384,6 +429,13 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
         # guards the arrays.
         if budget[0] < 0 or count >= states.shape[1]:
             done, going = _OUT_OF_STEPS, False
+        elif count < info[_KNOWN]:
+            # The step this scan took from here before (see _Scanner.scan), taken again as it
+            # stands: the same state, spending the same step of the budget. The next step
+            # reads the table afresh, which gives what the reading carried over gives.
+            info[_COUNT] = count + 1
+            info[_READ] = 0
+            done, going = _ADVANCED, False
     cell, speed = constants[_CELL], constants[_SPEED_TARGET]
     accel_limit, jerk_limit = constants[_ACCEL_TARGET], constants[_JERK_TARGET]
     accel_squared, jerk_squared = constants[_ACCEL_SQUARED], constants[_JERK_SQUARED]
@@ -563,7 +615,7 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
             states[1, count], states[2, count], states[3, count] = (
                 floats[_READING], floats[_READING + 1], floats[_READING + 2])
             states[4, count - 1] = legal_jerk
-            info[_COUNT] = count + 1
+            info[_COUNT] = info[_KNOWN] = count + 1
             info[_READ] = 1
             done = _ADVANCED
         else:
@@ -605,7 +657,8 @@ def _stop_or_back_up(failure, table, constants, factor, budget, states, info, fl
         lowest *= _BACK_UP_FACTOR
         for index in range(low, high):
             factor[index] = lowest
-        info[_COUNT] = first + 1
+        # The states past the last one kept are no longer this scan's.
+        info[_COUNT] = info[_KNOWN] = first + 1
         info[_READ] = 0
         done = _ADVANCED
     return _held(done, table, constants, factor, budget, states, info, floats)

@@ -335,10 +335,13 @@ class _ArcPlanner:
             raise _NoMotion()
         joined = self._join(forward, backward)
         if joined is None:
+            counts = forward.count, backward.count
             if _scan_both(*scanners, forward.parts(), backward.parts(), length, False,
                           _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
                 raise _NoMotion()
-            joined = self._join(forward, backward)
+            # Scans that had stopped took no step (the join would fail as it did).
+            if (forward.count, backward.count) != counts:
+                joined = self._join(forward, backward)
         if joined is not None:
             return joined, state_a, state_b
 
