@@ -50,7 +50,7 @@ def _bench_approach(request, join):
 # other jerk sign.
 BENCH_LEGS = ((373, 'g2'), (290, 'paper'))
 # A bench leg (request, join) whose arc splits at speed valleys 6 times, its scans backing up
-# 4 times: 20 scans start where one started before (8 kept ones dropped after a back-up).
+# 4 times: 20 scans start where one started before.
 SPLIT_LEG = (29, 'g2')
 # Legs (path, speed cap) the equivalence tests plan: the paper's example with each join, a
 # bend with a speed valley, a low, wide one under a speed cap, a bench leg of BENCH_LEGS
@@ -85,7 +85,7 @@ def _constructed_scan(seed):
     rng = np.random.default_rng(seed)
     pieces = 40
     scan = _Scan(0.0, 0.5, 0.0, 1.0, pieces + 1)
-    t, s, v, a, j = scan.states
+    t, s, v, a, j = scan.states[:5]
     for index in range(pieces):
         h, jerk = rng.uniform(2e-5, 1e-3), rng.uniform(-2000.0, 2000.0)
         t[index + 1] = t[index] + h
@@ -154,15 +154,28 @@ def test_a_kept_scan_takes_the_steps_a_new_scan_takes():
     assert kept.scan(0.0, 0.3, -0.0, 0.1) is not first
 
 
-def test_a_back_up_drops_the_kept_scans():
-    # A back-up lowers the acceleration shares the kept scans stepped with: a scan from their
-    # start is a new one.
-    scanner = optimal_profile._ArcPlanner(PATHS[0]()[0], CartesianLimits(), None).forward
-    first = scanner.scan(0.0, 0.3, 0.0, 0.05)
-    _run_scan(scanner, first)
-    backing = scanner.scan(0.01, 0.3, 0.0, 0.05)
-    backing.info[_FAILURES] = 1
-    assert scanner.scan(0.0, 0.3, 0.0, 0.05) is not first
+def test_a_back_up_forgets_the_steps_that_read_a_lowered_share():
+    # A back-up lowers the acceleration shares from an index on: a kept scan is known up to
+    # its first step that read a share there, and from there it steps as a new scan steps
+    # on the lowered shares.
+    path = PATHS[0]()[0]
+    scanner = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    end = scanner.cell * (scanner.table.shape[1] - 1)
+    first = scanner.scan(0.0, 0.3, 0.0, end)
+    before = _run_scan(scanner, first)
+    reads = first.states[arc_scan._READS, 1:first.count]
+    lowered = int(np.median(reads[reads >= 0.0]))
+    stale = 1 + int(np.flatnonzero(reads >= lowered)[0])
+    backing = scanner.scan(0.01, 0.3, 0.0, end)
+    scanner.factor[lowered:] *= 0.75
+    backing.info[arc_scan._LOWERED] = lowered
+    again = scanner.scan(0.0, 0.3, 0.0, end)
+    assert again is first and again.info[_KNOWN] == stale > 20
+    new = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    new.factor[:] = scanner.factor
+    after = _run_scan(scanner, again)
+    assert after == _run_scan(new, new.scan(0.0, 0.3, 0.0, end))
+    assert after[0] != before[0]
 
 
 @pytest.mark.parametrize('make_path', PATHS)

@@ -39,12 +39,13 @@ Layouts (all float64 unless said otherwise):
 - factor, shape (points + 1,): per cell, the share of the acceleration target the back-ups
   left (1 until a back-up lowers it);
 - budget, int64 shape (1,): the steps the plan may still take (shared by its two scanners);
-- states, shape (5, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state and the
-  jerk s''' [m/s**3] of the step from each state to the next;
-- info, int64 shape (5,): the number of states, the status, the back-ups so far, whether
+- states, shape (6, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state, the
+  jerk s''' [m/s**3] of the step from each state to the next, and the highest index into
+  ``factor`` the step to each state read (-1: none);
+- info, int64 shape (6,): the number of states, the status, the back-ups so far, whether
   ``reading`` holds the table's reading at the last state, the number of states known (held
   from an earlier run of the scan, see :meth:`_Scanner.scan`: the steps up to there are
-  taken as they stand);
+  taken as they stand), the lowest index into ``factor`` the scan's back-ups lowered;
 - floats, shape (9,): the arc length at which the scan ends, then the reading (s, s', s'',
   kappa, dkappa/ds, cap, the middle and half width of the jerk range).
 """
@@ -92,11 +93,14 @@ _STATUS_NAMES = ('live', 'end', 'speed', 'accel')
 # or the step budget ran out (the plan gives up on the scans).
 _STOPPED, _ADVANCED, _OUT_OF_STEPS = 0, 1, -1
 # Indices into a scan's info and floats, and into the constants.
-_COUNT, _STATUS, _FAILURES, _READ, _KNOWN = 0, 1, 2, 3, 4
+_COUNT, _STATUS, _FAILURES, _READ, _KNOWN, _LOWERED = 0, 1, 2, 3, 4, 5
 _END_AT, _READING = 0, 1
 _CELL, _SPEED_TARGET, _ACCEL_TARGET, _JERK_TARGET = 0, 1, 2, 3
 _ACCEL_SQUARED, _JERK_SQUARED, _SHARE, _TWO = 4, 5, 6, 7
 _CONSTANTS = 8
+# The states' row of the factor indices read, and info[_LOWERED] while no back-up lowered any.
+_READS = 5
+_NOT_LOWERED = 2 ** 62
 
 
 # The key of a kept scan: its start (s, s', s''), the floats' bytes (-0.0 is not 0.0 in the
@@ -178,19 +182,21 @@ class _Scanner:
         """
         Return a scan from (s, s', s'') to ``end``, with room for the budget's steps.
 
-        A scan from that state handed out before is handed out again when no
-        scan of this scanner has backed up since it stepped: its steps, taken
-        on the same table and back-up shares, are what a new scan would take,
-        and it takes them again as they stand (see :func:`_advance`), spending
-        the budget as a new scan would. A back-up lowers the shares every kept
-        scan stepped with: they are dropped.
+        A scan from that state handed out before is handed out again: its
+        steps, taken on the same table and back-up shares, are what a new scan
+        would take, and it takes them again as they stand (see
+        :func:`_advance`), spending the budget as a new scan would. A back-up
+        lowers the shares from one index of ``factor`` on: a kept scan's steps
+        are known up to the first that read a share there (:meth:`_Scan.forget`).
         """
         handed = self._handed
         if handed is not None:
-            if handed.info[_FAILURES]:
-                self._kept.clear()
-            else:
-                self._kept[handed.key] = handed
+            lowered = int(handed.info[_LOWERED])
+            if lowered != _NOT_LOWERED:
+                for kept in self._kept.values():
+                    kept.forget(lowered)
+                handed.forget(lowered)
+            self._kept[handed.key] = handed
         key = _THREE_FLOATS.pack(s, v, a)
         scan = self._kept.pop(key, None)
         if scan is None:
@@ -230,7 +236,15 @@ class _Scan:
         """Start the scan again towards ``end``, the states it took known (see _Scanner.scan)."""
         info = self.info
         info[_COUNT], info[_STATUS], info[_FAILURES], info[_READ] = 1, _LIVE, 0, 0
+        info[_LOWERED] = _NOT_LOWERED
         self.floats[_END_AT] = end
+
+    def forget(self, lowered):
+        """Keep the states known up to the first whose step read ``factor`` from ``lowered`` on."""
+        known = int(self.info[_KNOWN])
+        stale = np.flatnonzero(self.states[_READS, 1:known] >= lowered)
+        if stale.size:
+            self.info[_KNOWN] = 1 + int(stale[0])
 
     def parts(self):
         """Return the scan as the kernels take it: (states, info, floats)."""
@@ -298,10 +312,12 @@ def _py_min(first, second):
 @kernel
 def _new_scan(s, v, a, end, capacity):
     """Return the (states, info, floats) of a scan from (s, s', s'') to ``end`` [m]."""
-    states = np.empty((5, capacity))
+    states = np.empty((6, capacity))
     states[0, 0], states[1, 0], states[2, 0], states[3, 0] = 0.0, s, v, a
-    info = np.zeros(5, dtype=np.int64)
+    states[_READS, 0] = -1.0
+    info = np.zeros(6, dtype=np.int64)
     info[_COUNT] = info[_KNOWN] = 1
+    info[_LOWERED] = _NOT_LOWERED
     floats = np.zeros(9)
     floats[_END_AT] = end
     return states, info, floats
@@ -469,6 +485,8 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
     read = False
     s_end = v_end = kappa_end = kappa_s_end = cap_end = 0.0
     jerk = h = 0.0
+    # The highest factor index read (see _Scanner.scan).
+    reads = -1
     if going:
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
@@ -549,8 +567,11 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
                         bound = (-share - change) / divisor
                         if bound > floor:
                             floor = bound
-                    target_share = factor[0 if cell_index < 0 else last_factor
-                                          if cell_index > last_factor else cell_index]
+                    share_index = (0 if cell_index < 0 else last_factor
+                                   if cell_index > last_factor else cell_index)
+                    if share_index > reads:
+                        reads = share_index
+                    target_share = factor[share_index]
                     target = (target_share * target if target > 0.0
                               else target - (1.0 - target_share) * accel_limit)
                     has_target = target >= floor
@@ -615,6 +636,7 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
             states[1, count], states[2, count], states[3, count] = (
                 floats[_READING], floats[_READING + 1], floats[_READING + 2])
             states[4, count - 1] = legal_jerk
+            states[_READS, count] = reads
             info[_COUNT] = info[_KNOWN] = count + 1
             info[_READ] = 1
             done = _ADVANCED
@@ -655,6 +677,8 @@ def _stop_or_back_up(failure, table, constants, factor, budget, states, info, fl
             lowest = _py_min(lowest, factor[index])
         # Element by element: a slice would be one more counted array.
         lowest *= _BACK_UP_FACTOR
+        if low < info[_LOWERED]:
+            info[_LOWERED] = low
         for index in range(low, high):
             factor[index] = lowest
         # The states past the last one kept are no longer this scan's.
@@ -737,7 +761,7 @@ def _rows(states, count, time):
         if states[0, index] >= time:
             break
         rows[pieces, 0] = _py_min(states[0, index + 1], time) - states[0, index]
-        rows[pieces, 1:] = states[1:, index]
+        rows[pieces, 1:] = states[1:5, index]
         pieces += 1
     return rows[:pieces]
 

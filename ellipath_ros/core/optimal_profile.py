@@ -826,7 +826,7 @@ def _crossing(forward, forward_count, backward, backward_count, length):
     """
     Return (forward index, both cruising) where the forward scan first tops the backward.
 
-    ``forward`` and ``backward`` are the scans' states (shape (5, capacity),
+    ``forward`` and ``backward`` are the scans' states (shape (6, capacity),
     the first ``*_count`` filled); the index is -1 where they do not cross.
     """
     sigma = backward[1]
