@@ -357,6 +357,8 @@ class _ArcPlanner:
                 return backward.reversed_rows(time, length), (end[1], -end[2]), state_b
         index = self._valley_index(forward, backward, s_a, s_b)
         if index is not None and depth < _VALLEY_DEPTH:
+            # The scans are done with here: the parts' scanners hand them out again (the left
+            # part's from s_a, the right part's from s_b; see _Scanner.scan).
             return self._split(index, s_a, state_a, s_b, state_b, free_a, free_b, depth)
         # No valley in between: a scan from a free end that gives up started too fast.
         failed_a = forward.status != 'end' and free_a
