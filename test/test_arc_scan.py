@@ -15,15 +15,15 @@
 """
 The path-space scans and their join.
 
-The scan's shortcuts and its compiled kernels give what plain code gives; legs whose join
-once failed are joined.
+The scan's shortcuts and its compiled kernels give what plain code gives; a kept scan
+handed out again takes the steps a new one takes; legs whose join once failed are joined.
 """
 
 import math
 
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import arc_scan, optimal_profile
-from ellipath_ros.core.arc_scan import _advance, _ADVANCED, _READ, _Scan
+from ellipath_ros.core.arc_scan import _advance, _ADVANCED, _FAILURES, _KNOWN, _READ, _Scan
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import _check_reach_and_speed_cap, PlannerConfig
@@ -49,9 +49,12 @@ def _bench_approach(request, join):
 # 0.786 s and 0.972 s): the join found from scan states before the crossing, or with the
 # other jerk sign.
 BENCH_LEGS = ((373, 'g2'), (290, 'paper'))
+# A bench leg (request, join) whose arc splits at speed valleys 6 times, its scans backing up
+# 4 times: 20 scans start where one started before.
+SPLIT_LEG = (29, 'g2')
 # Legs (path, speed cap) the equivalence tests plan: the paper's example with each join, a
-# bend with a speed valley, a low, wide one under a speed cap, and a bench leg of
-# BENCH_LEGS.
+# bend with a speed valley, a low, wide one under a speed cap, a bench leg of BENCH_LEGS
+# and SPLIT_LEG.
 PATHS = (
     lambda: (plan_path([0, 0, -0.8], [0.3, 0, -0.75]), None),
     lambda: (plan_path([0, 0, -0.8], [0.3, 0, -0.75], join='paper'), None),
@@ -59,6 +62,7 @@ PATHS = (
     lambda: (plan_path([-0.2, 0.1, -0.85], [0.2, -0.1, -0.85]),
              lambda s: np.full(np.shape(s), 1.5)),
     lambda: _bench_approach(*BENCH_LEGS[0]),
+    lambda: _bench_approach(*SPLIT_LEG),
 )
 
 
@@ -81,7 +85,7 @@ def _constructed_scan(seed):
     rng = np.random.default_rng(seed)
     pieces = 40
     scan = _Scan(0.0, 0.5, 0.0, 1.0, pieces + 1)
-    t, s, v, a, j = scan.states
+    t, s, v, a, j = scan.states[:5]
     for index in range(pieces):
         h, jerk = rng.uniform(2e-5, 1e-3), rng.uniform(-2000.0, 2000.0)
         t[index + 1] = t[index] + h
@@ -121,6 +125,92 @@ def test_a_step_starts_from_the_reading_the_table_gives():
         for name in ('t', 's', 'v', 'a', 'j'):
             assert getattr(carried, name).tobytes() == getattr(fresh, name).tobytes()
         assert carried.status == fresh.status
+
+
+def _run_scan(scanner, scan):
+    """Run ``scan`` until it stops; return (its states as bytes, status, steps spent)."""
+    budget = int(scanner.budget[0])
+    scanner.run(scan)
+    states = b''.join(getattr(scan, name).tobytes() for name in ('t', 's', 'v', 'a', 'j'))
+    return states, scan.status, budget - int(scanner.budget[0])
+
+
+def test_a_kept_scan_takes_the_steps_a_new_scan_takes():
+    # A scan from a state a scan started from before is that scan, its steps known: it takes
+    # them again as they stand, towards a farther end and a nearer one, and spends the
+    # budget as a new scan does (on a scanner of its own).
+    path = PATHS[0]()[0]
+    kept = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    first = kept.scan(0.0, 0.3, 0.0, 0.4 * kept.cell * (kept.table.shape[1] - 1))
+    _run_scan(kept, first)
+    assert first.status == 'end' and first.count > 50 and not first.info[_FAILURES]
+    for share in (1.0, 0.2):
+        end = share * kept.cell * (kept.table.shape[1] - 1)
+        again = kept.scan(0.0, 0.3, 0.0, end)
+        assert again is first and again.info[_KNOWN] > 50
+        new = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+        assert _run_scan(kept, again) == _run_scan(new, new.scan(0.0, 0.3, 0.0, end))
+    # Another start (-0.0 is not 0.0) is a new scan.
+    assert kept.scan(0.0, 0.3, -0.0, 0.1) is not first
+
+
+def test_a_back_up_forgets_the_steps_that_read_a_lowered_share():
+    # A back-up lowers the acceleration shares from an index on: a kept scan is known up to
+    # its first step that read a share there, and from there it steps as a new scan steps
+    # on the lowered shares.
+    path = PATHS[0]()[0]
+    scanner = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    end = scanner.cell * (scanner.table.shape[1] - 1)
+    first = scanner.scan(0.0, 0.3, 0.0, end)
+    before = _run_scan(scanner, first)
+    reads = first.states[arc_scan._READS, 1:first.count]
+    lowered = int(np.median(reads[reads >= 0.0]))
+    stale = 1 + int(np.flatnonzero(reads >= lowered)[0])
+    backing = scanner.scan(0.01, 0.3, 0.0, end)
+    scanner.factor[lowered:] *= 0.75
+    backing.info[arc_scan._LOWERED] = lowered
+    again = scanner.scan(0.0, 0.3, 0.0, end)
+    assert again is first and again.info[_KNOWN] == stale > 20
+    new = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    new.factor[:] = scanner.factor
+    after = _run_scan(scanner, again)
+    assert after == _run_scan(new, new.scan(0.0, 0.3, 0.0, end))
+    assert after[0] != before[0]
+
+
+@pytest.mark.parametrize('make_path', PATHS)
+def test_kept_scans_plan_what_new_scans_plan_bit_for_bit(make_path, monkeypatch):
+    # The plan with scans kept and handed out again against the plan with a new scan each
+    # time: the same motion to the last bit and the same steps spent (the budget decides
+    # when bisections stop and when the scans give up).
+    path, cap = make_path()
+    limits = CartesianLimits()
+    spent = []
+    scanner_init = arc_scan._Scanner.__init__
+
+    def recorded(scanner, table, cell, limits, budget):
+        scanner_init(scanner, table, cell, limits, budget)
+        spent.append((budget, int(budget[0])))
+
+    monkeypatch.setattr(arc_scan._Scanner, '__init__', recorded)
+    restarts = []
+    restart = arc_scan._Scan.restart
+
+    def counted(scan, end):
+        restarts.append(end)
+        restart(scan, end)
+
+    monkeypatch.setattr(arc_scan._Scan, 'restart', counted)
+    kept = optimal_profile._optimal_motion(path, limits, cap)
+    kept_steps = [start - int(budget[0]) for budget, start in spent]
+    spent.clear()
+    monkeypatch.setattr(arc_scan._Scanner, 'scan', lambda scanner, s, v, a, end: _Scan(
+        s, v, a, end, max(int(scanner.budget[0]), 0) + 2))
+    new = optimal_profile._optimal_motion(path, limits, cap)
+    assert _bits(kept) == _bits(new)
+    assert kept_steps == [start - int(budget[0]) for budget, start in spent]
+    if make_path is PATHS[-1]:
+        assert len(restarts) >= 10
 
 
 def _kernels(module):

@@ -39,15 +39,19 @@ Layouts (all float64 unless said otherwise):
 - factor, shape (points + 1,): per cell, the share of the acceleration target the back-ups
   left (1 until a back-up lowers it);
 - budget, int64 shape (1,): the steps the plan may still take (shared by its two scanners);
-- states, shape (5, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state and the
-  jerk s''' [m/s**3] of the step from each state to the next;
-- info, int64 shape (4,): the number of states, the status, the back-ups so far, whether
-  ``reading`` holds the table's reading at the last state;
+- states, shape (6, capacity): rows t [s], s [m], s' [m/s], s'' [m/s**2] per state, the
+  jerk s''' [m/s**3] of the step from each state to the next, and the highest index into
+  ``factor`` the step to each state read (-1: none);
+- info, int64 shape (6,): the number of states, the status, the back-ups so far, whether
+  ``reading`` holds the table's reading at the last state, the number of states known (held
+  from an earlier run of the scan, see :meth:`_Scanner.scan`: the steps up to there are
+  taken as they stand), the lowest index into ``factor`` the scan's back-ups lowered;
 - floats, shape (9,): the arc length at which the scan ends, then the reading (s, s', s'',
   kappa, dkappa/ds, cap, the middle and half width of the jerk range).
 """
 
 import math
+import struct
 
 import numpy as np
 
@@ -89,11 +93,19 @@ _STATUS_NAMES = ('live', 'end', 'speed', 'accel')
 # or the step budget ran out (the plan gives up on the scans).
 _STOPPED, _ADVANCED, _OUT_OF_STEPS = 0, 1, -1
 # Indices into a scan's info and floats, and into the constants.
-_COUNT, _STATUS, _FAILURES, _READ = 0, 1, 2, 3
+_COUNT, _STATUS, _FAILURES, _READ, _KNOWN, _LOWERED = 0, 1, 2, 3, 4, 5
 _END_AT, _READING = 0, 1
 _CELL, _SPEED_TARGET, _ACCEL_TARGET, _JERK_TARGET = 0, 1, 2, 3
 _ACCEL_SQUARED, _JERK_SQUARED, _SHARE, _TWO = 4, 5, 6, 7
 _CONSTANTS = 8
+# The states' row of the factor indices read, and info[_LOWERED] while no back-up lowered any.
+_READS = 5
+_NOT_LOWERED = 2 ** 62
+
+
+# The key of a kept scan: its start (s, s', s''), the floats' bytes (-0.0 is not 0.0 in the
+# states the scan records).
+_THREE_FLOATS = struct.Struct('<3d')
 
 
 class _NoMotion(Exception):
@@ -136,9 +148,13 @@ class _Scanner:
 
     ``cell`` is the table's grid step [m]; ``budget`` is the step budget
     (int64 array of one value) shared with the plan's other scanner.
+
+    The scans it hands out are kept for a later scan from the same state (see :meth:`scan`).
+    A scan is done with once the scanner hands out the next one (the plan's stretches are
+    solved one after another, and a stretch uses its scans before it splits).
     """
 
-    __slots__ = ('table', 'constants', 'factor', 'budget')
+    __slots__ = ('table', 'constants', 'factor', 'budget', '_kept', '_handed')
 
     def __init__(self, table, cell, limits, budget):
         self.table = table
@@ -149,6 +165,9 @@ class _Scanner:
         self.constants = np.array(
             [cell, speed, accel, jerk, accel ** 2, jerk ** 2, _NORMAL_JERK_SHARE, 2.0])
         self.factor = np.ones(table.shape[1] + 1)
+        # The scans kept ({start key: scan}) and the one handed out last (or None).
+        self._kept = {}
+        self._handed = None
 
     @property
     def cell(self):
@@ -160,8 +179,32 @@ class _Scanner:
         return self.table, self.constants, self.factor, self.budget
 
     def scan(self, s, v, a, end):
-        """Return a new scan from (s, s', s'') to ``end``, with room for the budget's steps."""
-        return _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+        """
+        Return a scan from (s, s', s'') to ``end``, with room for the budget's steps.
+
+        A scan from that state handed out before is handed out again: its
+        steps, taken on the same table and back-up shares, are what a new scan
+        would take, and it takes them again as they stand (see
+        :func:`_advance`), spending the budget as a new scan would. A back-up
+        lowers the shares from one index of ``factor`` on: a kept scan's steps
+        are known up to the first that read a share there (:meth:`_Scan.forget`).
+        """
+        handed = self._handed
+        if handed is not None:
+            lowered = int(handed.info[_LOWERED])
+            if lowered != _NOT_LOWERED:
+                for kept in self._kept.values():
+                    kept.forget(lowered)
+                handed.forget(lowered)
+            self._kept[handed.key] = handed
+        key = _THREE_FLOATS.pack(s, v, a)
+        scan = self._kept.pop(key, None)
+        if scan is None:
+            scan = _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+        else:
+            scan.restart(end)
+        self._handed = scan
+        return scan
 
     def run(self, scan):
         """Advance ``scan`` until it stops; raise :class:`_NoMotion` if the budget runs out."""
@@ -180,12 +223,28 @@ class _Scan:
     ``_BACK_UP_LIMIT`` back-ups).
     """
 
-    __slots__ = ('states', 'info', 'floats')
+    __slots__ = ('states', 'info', 'floats', 'key')
 
     def __init__(self, s, v, a, end, capacity):
         # Floats whatever the caller holds: one compiled signature (the warm-up's).
         self.states, self.info, self.floats = _new_scan(
             float(s), float(v), float(a), float(end), int(capacity))
+        # Its start (see _Scanner.scan).
+        self.key = _THREE_FLOATS.pack(s, v, a)
+
+    def restart(self, end):
+        """Start the scan again towards ``end``, the states it took known (see _Scanner.scan)."""
+        info = self.info
+        info[_COUNT], info[_STATUS], info[_FAILURES], info[_READ] = 1, _LIVE, 0, 0
+        info[_LOWERED] = _NOT_LOWERED
+        self.floats[_END_AT] = end
+
+    def forget(self, lowered):
+        """Keep the states known up to the first whose step read ``factor`` from ``lowered`` on."""
+        known = int(self.info[_KNOWN])
+        stale = np.flatnonzero(self.states[_READS, 1:known] >= lowered)
+        if stale.size:
+            self.info[_KNOWN] = 1 + int(stale[0])
 
     def parts(self):
         """Return the scan as the kernels take it: (states, info, floats)."""
@@ -253,10 +312,12 @@ def _py_min(first, second):
 @kernel
 def _new_scan(s, v, a, end, capacity):
     """Return the (states, info, floats) of a scan from (s, s', s'') to ``end`` [m]."""
-    states = np.empty((5, capacity))
+    states = np.empty((6, capacity))
     states[0, 0], states[1, 0], states[2, 0], states[3, 0] = 0.0, s, v, a
-    info = np.zeros(4, dtype=np.int64)
-    info[_COUNT] = 1
+    states[_READS, 0] = -1.0
+    info = np.zeros(6, dtype=np.int64)
+    info[_COUNT] = info[_KNOWN] = 1
+    info[_LOWERED] = _NOT_LOWERED
     floats = np.zeros(9)
     floats[_END_AT] = end
     return states, info, floats
@@ -384,6 +445,13 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
         # guards the arrays.
         if budget[0] < 0 or count >= states.shape[1]:
             done, going = _OUT_OF_STEPS, False
+        elif count < info[_KNOWN]:
+            # The step this scan took from here before (see _Scanner.scan), taken again as it
+            # stands: the same state, spending the same step of the budget. The next step
+            # reads the table afresh, which gives what the reading carried over gives.
+            info[_COUNT] = count + 1
+            info[_READ] = 0
+            done, going = _ADVANCED, False
     cell, speed = constants[_CELL], constants[_SPEED_TARGET]
     accel_limit, jerk_limit = constants[_ACCEL_TARGET], constants[_JERK_TARGET]
     accel_squared, jerk_squared = constants[_ACCEL_SQUARED], constants[_JERK_SQUARED]
@@ -417,6 +485,8 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
     read = False
     s_end = v_end = kappa_end = kappa_s_end = cap_end = 0.0
     jerk = h = 0.0
+    # The highest factor index read (see _Scanner.scan).
+    reads = -1
     if going:
         h = _SCAN_STEP if kappa <= _SCAN_KAPPA else _SCAN_STEP_SHORT
         if v * abs(kappa_s) * h > _SCAN_KAPPA_CHANGE * kappa:
@@ -497,8 +567,11 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
                         bound = (-share - change) / divisor
                         if bound > floor:
                             floor = bound
-                    target_share = factor[0 if cell_index < 0 else last_factor
-                                          if cell_index > last_factor else cell_index]
+                    share_index = (0 if cell_index < 0 else last_factor
+                                   if cell_index > last_factor else cell_index)
+                    if share_index > reads:
+                        reads = share_index
+                    target_share = factor[share_index]
                     target = (target_share * target if target > 0.0
                               else target - (1.0 - target_share) * accel_limit)
                     has_target = target >= floor
@@ -563,7 +636,8 @@ def _advance(table, constants, factor, budget, states, info, floats, back_up):
             states[1, count], states[2, count], states[3, count] = (
                 floats[_READING], floats[_READING + 1], floats[_READING + 2])
             states[4, count - 1] = legal_jerk
-            info[_COUNT] = count + 1
+            states[_READS, count] = reads
+            info[_COUNT] = info[_KNOWN] = count + 1
             info[_READ] = 1
             done = _ADVANCED
         else:
@@ -603,9 +677,12 @@ def _stop_or_back_up(failure, table, constants, factor, budget, states, info, fl
             lowest = _py_min(lowest, factor[index])
         # Element by element: a slice would be one more counted array.
         lowest *= _BACK_UP_FACTOR
+        if low < info[_LOWERED]:
+            info[_LOWERED] = low
         for index in range(low, high):
             factor[index] = lowest
-        info[_COUNT] = first + 1
+        # The states past the last one kept are no longer this scan's.
+        info[_COUNT] = info[_KNOWN] = first + 1
         info[_READ] = 0
         done = _ADVANCED
     return _held(done, table, constants, factor, budget, states, info, floats)
@@ -684,7 +761,7 @@ def _rows(states, count, time):
         if states[0, index] >= time:
             break
         rows[pieces, 0] = _py_min(states[0, index + 1], time) - states[0, index]
-        rows[pieces, 1:] = states[1:, index]
+        rows[pieces, 1:] = states[1:5, index]
         pieces += 1
     return rows[:pieces]
 

@@ -335,10 +335,13 @@ class _ArcPlanner:
             raise _NoMotion()
         joined = self._join(forward, backward)
         if joined is None:
+            counts = forward.count, backward.count
             if _scan_both(*scanners, forward.parts(), backward.parts(), length, False,
                           _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
                 raise _NoMotion()
-            joined = self._join(forward, backward)
+            # Scans that had stopped took no step (the join would fail as it did).
+            if (forward.count, backward.count) != counts:
+                joined = self._join(forward, backward)
         if joined is not None:
             return joined, state_a, state_b
 
@@ -354,6 +357,8 @@ class _ArcPlanner:
                 return backward.reversed_rows(time, length), (end[1], -end[2]), state_b
         index = self._valley_index(forward, backward, s_a, s_b)
         if index is not None and depth < _VALLEY_DEPTH:
+            # The scans are done with here: the parts' scanners hand them out again (the left
+            # part's from s_a, the right part's from s_b; see _Scanner.scan).
             return self._split(index, s_a, state_a, s_b, state_b, free_a, free_b, depth)
         # No valley in between: a scan from a free end that gives up started too fast.
         failed_a = forward.status != 'end' and free_a
@@ -823,7 +828,7 @@ def _crossing(forward, forward_count, backward, backward_count, length):
     """
     Return (forward index, both cruising) where the forward scan first tops the backward.
 
-    ``forward`` and ``backward`` are the scans' states (shape (5, capacity),
+    ``forward`` and ``backward`` are the scans' states (shape (6, capacity),
     the first ``*_count`` filled); the index is -1 where they do not cross.
     """
     sigma = backward[1]
