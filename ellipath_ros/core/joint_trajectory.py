@@ -1219,8 +1219,9 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     status, knots, need = _placed(initial, low, high, context)
     errors, error = np.empty(0), 0.0
     if status == _FOUND:
+        # A rejected segment is halved (_refine): its error is not needed whole.
         index = np.arange(knots[0].size)
-        status, errors, need = _segment_errors(knots, index[:-1], index[1:], context, np.inf)
+        status, errors, need = _segment_errors(knots, index[:-1], index[1:], context, accept)
     if status == _FOUND:
         status, knots, errors, need = _refine(knots, errors, context, accept, shortest)
     if status == _FOUND:
@@ -1301,7 +1302,7 @@ def _placed(wanted, low, high, context):
 
 
 @kernel
-def _segment_errors(knots, start, end, context, limit):
+def _segment_errors(knots, start, end, context, limit, all_or_none=False):
     """
     Return (status, errors, need): the largest TCP deviation on each segment start -> end.
 
@@ -1310,8 +1311,9 @@ def _segment_errors(knots, start, end, context, limit):
     interpolated from the planned table, or the evaluated ones (status ``_NEEDS_PLANNED``
     with the check times not yet evaluated). A pose that cannot be assembled counts as inf.
     A segment's evaluation stops at the first error above ``limit`` (then its error is one
-    above ``limit``, not the largest). A run after a stop takes the errors of the stopped
-    run from its journal (see :func:`_search_knots`), and adds the ones it evaluates.
+    above ``limit``, not the largest); with ``all_or_none`` the batch's does (see
+    :func:`_evaluated_errors`). A run after a stop takes the errors of the stopped run from
+    its journal (see :func:`_search_knots`), and adds the ones it evaluates.
     """
     journal, cursor, batches = context[6]
     if cursor[0] + start.size <= journal.size:
@@ -1320,15 +1322,24 @@ def _segment_errors(knots, start, end, context, limit):
     # Past the journal's end: no later batch is taken from it.
     cursor[0] = journal.size
     status, errors, need = _evaluated_errors(knots, start, end, context[2], context[3],
-                                             context[4], context[5], limit)
+                                             context[4], context[5], limit, all_or_none)
     if status == _FOUND:
         batches.append(errors)
     return status, errors, need
 
 
 @kernel
-def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, limit):
-    """:func:`_segment_errors` evaluated (the ``context``'s parts given), no journal."""
+def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, limit,
+                      all_or_none=False):
+    """
+    :func:`_segment_errors` evaluated (the ``context``'s parts given), no journal.
+
+    Below an infinite ``limit``, a segment's middle check point is taken first (the error of
+    a segment too long peaks near its middle, so a rejected one stops there as a rule), then
+    the others in order: the largest error is the same in any order. With ``all_or_none``,
+    the batch stops at its first segment above ``limit``, and that one's error and all the
+    later ones are inf (for a caller that needs the errors only if every segment passes).
+    """
     rx, ry, offset, upper, forearm_sq = geometry
     times, positions, velocities, accelerations = knots
     count = fractions.size
@@ -1337,6 +1348,9 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
         missing = _missing_check_times(times, start, end, fractions, planned[0])
         if missing.size:
             return _NEEDS_PLANNED, np.empty(0), (missing, np.empty(0), np.empty(0))
+    # Visit -1 is the middle check point, taken first below a finite limit.
+    probe = count // 2 if limit < np.inf else -1
+    first_visit = -1 if probe >= 0 else 0
     c = np.empty((6, 3))
     reached = np.empty((1, 3))
     expected = np.empty((1, 3))
@@ -1351,14 +1365,22 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
                       accelerations, first, second, c)
         worst = -np.inf
         # The table interval of the first check point, then walked along the later ones:
-        # the interval _hermite_row would search for each.
-        step = min(max(np.searchsorted(table_times, t0 + length * fractions[0],
-                                       side='right') - 1, 0), final)
-        for sample in range(count):
+        # the interval _hermite_row would search for each (for the probe, searched).
+        walked = min(max(np.searchsorted(table_times, t0 + length * fractions[0],
+                                         side='right') - 1, 0), final)
+        for visit in range(first_visit, count):
+            sample = probe if visit < 0 else visit
             x = length * fractions[sample]
+            if visit < 0:
+                step = min(max(np.searchsorted(table_times, t0 + x, side='right') - 1, 0),
+                           final)
+            else:
+                while walked < final and table_times[walked + 1] <= t0 + x:
+                    walked += 1
+                if visit == probe:
+                    continue
+                step = walked
             if from_table:
-                while step < final and table_times[step + 1] <= t0 + x:
-                    step += 1
                 _hermite_in(table_times, table[1], table[2], step, t0 + x, expected, 0)
             else:
                 expected[0] = planned[1][np.searchsorted(planned[0], t0 + x)]
@@ -1377,6 +1399,9 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
                 if worst > limit:
                     break
         errors[segment] = worst
+        if all_or_none and worst > limit:
+            errors[segment:] = np.inf
+            break
     return _FOUND, errors, _no_need()
 
 
@@ -1399,7 +1424,13 @@ def _missing_check_times(times, start, end, fractions, evaluated):
 
 @kernel
 def _refine(knots, errors, context, accept, shortest):
-    """Halve rejected segments until every segment error is <= accept; (status, knots...)."""
+    """
+    Halve rejected segments until every segment error is <= accept; (status, knots...).
+
+    A rejected segment's error need only be above ``accept`` (it is halved): the halves are
+    evaluated up to their first check point above it. The one too short to halve is
+    evaluated whole for the outcome's error.
+    """
     while True:
         rejected = errors > accept
         if not rejected.any():
@@ -1411,8 +1442,12 @@ def _refine(knots, errors, context, accept, shortest):
                     worst]:
                 worst = segment
         if times[worst + 1] - times[worst] < 2.0 * shortest:
+            status, whole, need = _segment_errors(knots, np.full(1, worst),
+                                                  np.full(1, worst + 1), context, np.inf)
+            if status != _FOUND:
+                return status, knots, errors, need
             return (_TOO_FINE, knots, errors,
-                    (np.full(1, times[worst]), np.full(1, errors[worst]), np.empty(0)))
+                    (np.full(1, times[worst]), whole, np.empty(0)))
         start = np.flatnonzero(rejected)
         status, middle, need = _placed(0.5 * (times[start] + times[start + 1]),
                                        times[start], times[start + 1], context)
@@ -1439,7 +1474,7 @@ def _refine(knots, errors, context, accept, shortest):
         new_errors[~child] = errors[~rejected]
         halves = np.flatnonzero(child)
         status, half_errors, need = _segment_errors(merged, halves, halves + 1, context,
-                                                    np.inf)
+                                                    accept)
         if status != _FOUND:
             return status, knots, errors, need
         new_errors[halves] = half_errors
@@ -1502,7 +1537,7 @@ def _replace(knots, errors, context, accept, shortest):
         return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured)
     target = min(estimate, times.size - 2)
     pruned = False
-    for _ in range(_REPLACEMENTS):
+    for trial_number in range(_REPLACEMENTS):
         if target < 1:
             break
         wanted = _equidistributed(times, measured, target)
@@ -1514,14 +1549,19 @@ def _replace(knots, errors, context, accept, shortest):
         if (trial_times[1:] - trial_times[:-1]).min() < shortest:
             break
         index = np.arange(trial_times.size)
-        status, trial_errors, need = _segment_errors(trial, index[:-1], index[1:], context,
-                                                     np.inf)
+        # A set that fails ends the trials when it is the last or has one segment fewer than
+        # the knots (the next would have as many, below): then only a set that passes needs
+        # its errors, and the evaluation stops at the first segment above accept.
+        decisive = trial_number == _REPLACEMENTS - 1 or target + 1 >= knots[0].size - 1
+        status, trial_errors, need = _segment_errors(
+            trial, index[:-1], index[1:], context, accept if decisive else np.inf, decisive)
         if status != _FOUND:
             return status, knots, errors, need, 0.0
         if not np.isfinite(trial_errors).all():
-            # JTC's quintic between two trial knots passes a pose the arms cannot assemble:
-            # the set is rejected, and the next has one segment more, spread by the last
-            # finite measurement (which the error density needs).
+            # JTC's quintic between two trial knots passes a pose the arms cannot assemble
+            # (or a decisive set failed, its later errors inf): the set is rejected, and the
+            # next has one segment more, spread by the last finite measurement (which the
+            # error density needs).
             target += 1
             if target >= knots[0].size - 1:
                 break
