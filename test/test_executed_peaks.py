@@ -14,6 +14,7 @@
 
 """The executed peaks are the maxima of JTC's quintic, not of samples: against dense NumPy."""
 
+from ellipath_ros.core import joint_trajectory, kinematics
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.joint_trajectory import (
     _EXECUTED_REFINE_SHARE, _joint_extremes, _quadratic_roots, DEFAULT_JOINT_NAMES,
@@ -98,3 +99,38 @@ def test_a_quintic_through_an_unassembled_pose_is_named():
                                 np.zeros((2, 3)))
     with pytest.raises(UnreachableError, match='interpolated q'):
         executed_table(knots, CONFIG.geometry)
+
+
+# The steps the executed-peak kernel takes per sample and per search step, inlined into the
+# loops that call them: a call to a compiled step that takes arrays counts their references
+# up and down (atomic), which cost ~40 % of _peak_rows' time on the bench's slowest requests.
+PER_SAMPLE_STEPS = (joint_trajectory._polynomial, joint_trajectory._executed_tcp,
+                    joint_trajectory._executed_value, kinematics._tcp_state,
+                    kinematics._forward_point)
+
+
+@pytest.mark.parametrize('step', PER_SAMPLE_STEPS, ids=lambda step: step.__name__)
+def test_the_per_sample_steps_are_inlined(step):
+    assert step.targetoptions['inline'] == 'always'
+
+
+def test_the_inlined_peak_kernel_equals_its_steps_called_one_by_one():
+    # The kernel's Python body, interpreted, calls each step as its own compiled function
+    # (as before they were inlined): the same table and the same failed segment, bit for bit.
+    leg = plan_transfer([0.05, -0.1, -0.85], [-0.25, 0.15, -0.7], CONFIG)
+    trajectory = leg.joint_trajectory
+    times = trajectory.time_from_start
+    todo = np.ones(times.size - 1, bool)
+    todo[::3] = False
+    tables = []
+    for kernel in (joint_trajectory._peak_rows, joint_trajectory._peak_rows.py_func):
+        table = np.zeros((times.size - 1, 5))
+        table[~todo] = 1.0  # rows taken from earlier knots: kept, and searched if near a peak
+        failed_offset = np.zeros(1)
+        failed = kernel(times, trajectory.positions, trajectory.velocities,
+                        trajectory.accelerations, todo, 12, _EXECUTED_REFINE_SHARE,
+                        *kinematics._kernel_geometry(CONFIG.geometry), table, failed_offset)
+        tables.append((failed, table, failed_offset))
+    (failed, table, _), (failed_steps, table_steps, _) = tables
+    assert failed == failed_steps == -1
+    assert table.tobytes() == table_steps.tobytes()

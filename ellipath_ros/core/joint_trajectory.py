@@ -553,7 +553,7 @@ def _polynomial_rows(coefficients, offsets, values):
                     values[derivative, segment, sample, j] = _polynomial(c, j, x, derivative)
 
 
-@kernel
+@kernel(inline=True)
 def _polynomial(c, j, x, derivative):
     """
     Return the ``derivative``-th derivative (0 to 3) of column j of ``c`` (6, J) at ``x``.
@@ -2179,7 +2179,7 @@ def _quadratic_roots(a, b, c):
     return min(first, second), max(first, second)
 
 
-@kernel
+@kernel(inline=True)
 def _executed_tcp(c, x, order, rx, ry, offset, upper, forearm_sq, coplanar):
     """
     Return (status, TCP speed, acceleration, jerk norm) of quintic ``c`` (6, 3) at ``x``.
@@ -2196,7 +2196,7 @@ def _executed_tcp(c, x, order, rx, ry, offset, upper, forearm_sq, coplanar):
     return state, _norm(velocity), _norm(acceleration), _norm(jerk)
 
 
-@kernel
+@kernel(inline=True)
 def _executed_value(c, x, key, rx, ry, offset, upper, forearm_sq, coplanar):
     """Return (status, value) of TCP quantity ``key`` (0 speed, 1 acceleration, 2 jerk)."""
     state, speed, accel, jerk = _executed_tcp(c, x, key + 1, rx, ry, offset, upper,

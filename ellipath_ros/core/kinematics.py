@@ -635,7 +635,7 @@ def _forward_row(q0, q1, q2, rx, ry, offset, upper, forearm_sq, points, row):
     return status
 
 
-@kernel
+@kernel(inline=True)
 def _forward_point(cos0, sin0, cos1, sin1, cos2, sin2, rx, ry, offset, upper, forearm_sq):
     """Return (status, x, y, z): the TCP of joint angles given by their cosines and sines."""
     radial0 = offset + upper * cos0
@@ -704,7 +704,7 @@ def _tcp_rows(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplana
             acceleration[row, axis], jerk[row, axis] = a[axis], j[axis]
 
 
-@kernel
+@kernel(inline=True)
 def _tcp_state(q, qdot, qddot, qdddot, rx, ry, offset, upper, forearm_sq, coplanar, order):
     """
     :func:`tcp_derivatives` of one joint state; return (status, p, v, a, j).
