@@ -167,7 +167,7 @@ def _measure(client, requests, budget_s, progress, node_process, log):
         times.append(elapsed)
         from_pick.append(since_pick)
         last = np.array(message.points[-1].positions)
-        if not np.allclose(last, request.plan.joint_trajectory.positions[-1],
+        if not np.allclose(last, request.trajectory.positions[-1],
                            atol=SAME_PLAN_TOLERANCE):
             mismatched += 1
     progress('e2e', len(times), len(requests), finished=True)

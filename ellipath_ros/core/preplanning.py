@@ -152,9 +152,10 @@ class ApproachCache:
         """
         Keep the approach planned for ``slot`` from ``start`` with ``token`` (None: it failed).
 
-        Kept if the slot is still there, waiting for its place or already claimed by its pair
-        (a place that came while the leg was planned); a failed plan is not tried again from
-        the same start (the pair's own plan reports the error).
+        Written into the slot, whether it still waits for its place, is claimed by its pair (a
+        place that came while the leg was planned) or was dropped meanwhile (then nothing
+        reaches it and the leg goes with it); counted as a leg in every case. A failed plan is
+        not tried again from the same start (the pair's own plan reports the error).
         """
         with self._lock:
             self._counts['legs'] += 1
