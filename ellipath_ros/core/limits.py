@@ -21,6 +21,7 @@ happens between the steps they are built from (the final check in
 """
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -76,7 +77,10 @@ class CartesianLimits:
 def _cap_values(speed_cap, s):
     """Call the speed cap on path lengths ``s`` (N,) and check the answer."""
     values = np.asarray(speed_cap(s), dtype=float)
-    if values.shape != s.shape or not np.all(values > 0.0) or not np.all(np.isfinite(values)):
+    # All positive and finite: the smallest above 0 (NaN where any is NaN, which fails) and
+    # the largest below inf, two reductions instead of two comparisons and two np.all.
+    if values.shape != s.shape or (values.size and not (
+            values.min() > 0.0 and values.max() < math.inf)):
         raise InvalidInputError(
             f'speed_cap: expected positive finite speeds of shape {s.shape} [m/s], got '
             f'shape {values.shape}, minimum {np.min(values) if values.size else None}')

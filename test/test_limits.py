@@ -1,0 +1,42 @@
+# Copyright 2026 The ellipath_ros authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The speed cap's check: every answer that is not positive, finite and of the right shape."""
+
+import math
+
+from ellipath_ros.core.errors import InvalidInputError
+from ellipath_ros.core.limits import _cap_values
+import numpy as np
+import pytest
+
+_S = np.linspace(0.0, 0.3, 129)
+
+
+@pytest.mark.parametrize('bad', [0.0, -0.0, -1.0, math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize('where', [0, 64, 128])
+def test_one_bad_speed_among_good_ones_is_refused(bad, where):
+    values = np.full(_S.shape, 2.0)
+    values[where] = bad
+    with pytest.raises(InvalidInputError, match='^speed_cap: expected positive finite'):
+        _cap_values(lambda s: values, _S)
+
+
+def test_a_wrong_shape_is_refused_and_good_speeds_pass_as_floats():
+    with pytest.raises(InvalidInputError, match=r'got shape \(3,\)'):
+        _cap_values(lambda s: np.ones(3), _S)
+    single = (1.0 + _S).astype(np.float32)
+    speeds = _cap_values(lambda s: single, _S)
+    assert speeds.dtype == np.float64 and np.array_equal(speeds, single)
+    assert _cap_values(lambda s: [], np.empty(0)).shape == (0,)
