@@ -589,7 +589,8 @@ def _optimal_motion(path, limits, speed_cap):
     """Build the time-optimal profile (see :func:`time_motion`)."""
     if path.arc is None:
         return _straight_motion(path, limits, speed_cap, 'time_optimal')
-    c1, arc_length, c2 = (float(value) for value in path.segment_lengths)
+    # Python floats (as the lines' keys hold them), one conversion for the three.
+    c1, arc_length, c2 = path.segment_lengths.tolist()
     planner = _ArcPlanner(path, limits, speed_cap)
     entry = planner.end_state(planner.end_speed(c1, True, speed_cap), c1, True, speed_cap)
     exit_state = planner.end_state(planner.end_speed(c2, False, speed_cap), c2, False,
@@ -632,7 +633,7 @@ def _optimal_motion(path, limits, speed_cap):
 def _with_lines(planner, speed_cap, arc_rows, entry, exit_state):
     """Return (lift rows, arc rows, descent rows, entry, exit), or None if a line fails."""
     path = planner.path
-    c1, arc_length, _ = (float(value) for value in path.segment_lengths)
+    c1, arc_length, _ = path.segment_lengths.tolist()
     lift, descent = [], []
     if c1 > 0.0:
         lift = planner.line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), speed_cap, 0.0, c1)
