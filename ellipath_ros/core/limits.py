@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .compiled import kernel
 from .errors import InvalidInputError
 from .settings import default_of, validate_fields
 
@@ -85,3 +86,25 @@ def _cap_values(speed_cap, s):
             f'speed_cap: expected positive finite speeds of shape {s.shape} [m/s], got '
             f'shape {values.shape}, minimum {np.min(values) if values.size else None}')
     return values
+
+
+@kernel
+def _even_samples(start, stop, count):
+    """
+    Return ``numpy.linspace(start, stop, count)`` (count >= 2), computed as it does.
+
+    Each sample is index * step + start (index / (count - 1) * (stop - start) + start where
+    the step rounds to 0), the last ``stop``: the same roundings, a few microseconds less
+    per call (NumPy's checks and conversions) where the stretches' samples are asked for.
+    """
+    samples = np.empty(count)
+    delta = stop - start
+    divisor = count - 1
+    step = delta / divisor
+    for index in range(count):
+        if step == 0.0:
+            samples[index] = index / divisor * delta + start
+        else:
+            samples[index] = index * step + start
+    samples[count - 1] = stop
+    return samples

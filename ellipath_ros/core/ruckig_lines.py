@@ -25,7 +25,8 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .limits import (
+    _ACCEL_MARGIN, _cap_values, _even_samples, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN)
 from .motion import _PieceList, TimedMotion
 
 # Each thread's Ruckig objects (see _solver).
@@ -134,7 +135,7 @@ def _line_speed(limits, speed_cap, s_from, s_to):
     speed = limits.max_speed * _SPEED_MARGIN
     if speed_cap is not None and s_to > s_from:
         speed = min(speed, _SPEED_MARGIN * float(_cap_values(
-            speed_cap, np.linspace(s_from, s_to, _LIMIT_SAMPLES)).min()))
+            speed_cap, _even_samples(float(s_from), float(s_to), _LIMIT_SAMPLES)).min()))
     return speed
 
 
