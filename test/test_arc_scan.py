@@ -84,7 +84,7 @@ def _constructed_scan(seed):
     """Return a scan of random constant-jerk pieces, states chained exactly as a scan's."""
     rng = np.random.default_rng(seed)
     pieces = 40
-    scan = _Scan(0.0, 0.5, 0.0, 1.0, pieces + 1)
+    scan = _Scan(0.0, 0.5, 0.0, 1.0, pieces + 1, arc_scan._THREE_FLOATS.pack(0.0, 0.5, 0.0))
     t, s, v, a, j = scan.states[:5]
     for index in range(pieces):
         h, jerk = rng.uniform(2e-5, 1e-3), rng.uniform(-2000.0, 2000.0)
@@ -205,7 +205,7 @@ def test_kept_scans_plan_what_new_scans_plan_bit_for_bit(make_path, monkeypatch)
     kept_steps = [start - int(budget[0]) for budget, start in spent]
     spent.clear()
     monkeypatch.setattr(arc_scan._Scanner, 'scan', lambda scanner, s, v, a, end: _Scan(
-        s, v, a, end, max(int(scanner.budget[0]), 0) + 2))
+        s, v, a, end, max(int(scanner.budget[0]), 0) + 2, arc_scan._THREE_FLOATS.pack(s, v, a)))
     new = optimal_profile._optimal_motion(path, limits, cap)
     assert _bits(kept) == _bits(new)
     assert kept_steps == [start - int(budget[0]) for budget, start in spent]

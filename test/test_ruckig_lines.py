@@ -14,6 +14,8 @@
 
 """The Ruckig wrapper: its pieces reach the target, and a refusal keeps Ruckig's reason."""
 
+import threading
+
 from ellipath_ros.core.ruckig_lines import _ruckig_rows, _ruckig_solution
 import pytest
 
@@ -43,3 +45,25 @@ def test_a_target_too_close_for_its_speed_is_refused_as_running_backwards():
     rows, why = _ruckig_solution((0.0, 0.0, 0.0), (0.001, 2.0, 0.0), 4.0, 50.0, 5000.0)
     assert rows is None and 'backwards' in why
     assert _ruckig_rows((0.0, 0.0, 0.0), (0.001, 2.0, 0.0), 4.0, 50.0, 5000.0) is None
+
+
+def test_a_start_above_the_speed_limit_brakes_first_and_still_reaches_the_target():
+    rows, why = _ruckig_solution((0.0, 3.0, 10.0), (0.5, 0.0, 0.0), 2.0, 20.0, 500.0)
+    assert why is None
+    # Ruckig's brake pieces come first: the first leaves the start state, above the limit.
+    assert rows[0][1:4] == (0.0, 3.0, 10.0)
+    assert _end_state(rows) == pytest.approx((0.5, 0.0, 0.0), abs=1e-9)
+
+
+def test_a_solve_does_not_depend_on_the_solves_before_it():
+    # Each thread reuses its Ruckig objects: after a refusal and a braking solve, a solve
+    # gives what it gives as the first of a new thread.
+    case = ((0.0, 0.2, -3.0), (0.1, 0.5, 2.0), 4.0, 50.0, 5000.0)
+    fresh = []
+    thread = threading.Thread(target=lambda: fresh.append(_ruckig_solution(*case)))
+    thread.start()
+    thread.join()
+    assert _ruckig_solution((0.0, 0.0, 0.0), (0.1, 1.0, 80.0), 4.0, 50.0, 5000.0)[0] is None
+    assert _ruckig_solution((0.0, 3.0, 10.0), (0.5, 0.0, 0.0), 2.0, 20.0, 500.0)[0]
+    assert _ruckig_solution(*case) == fresh[0]
+    assert fresh[0][1] is None

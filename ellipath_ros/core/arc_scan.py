@@ -129,16 +129,23 @@ def _arc_tables(kappa, kappa_s, cap):
     """
     points = kappa.size
     last = points - 1
-    forward, backward = np.zeros((5, points)), np.zeros((5, points))
+    forward, backward = np.empty((5, points)), np.empty((5, points))
+    # Row by row (each a contiguous view): the loops index one dimension, not two.
+    kappa_forward, rise_forward, kappa_s_forward, rise_s_forward, cap_forward = forward
+    kappa_backward, rise_backward, kappa_s_backward, rise_s_backward, cap_backward = backward
     for index in range(points):
-        forward[0, index], forward[2, index] = kappa[index], kappa_s[index]
-        backward[0, index], backward[2, index] = kappa[last - index], -kappa_s[last - index]
-    for table in (forward, backward):
-        for index in range(last):
-            table[1, index] = table[0, index + 1] - table[0, index]
-            table[3, index] = table[2, index + 1] - table[2, index]
-    forward[4, :last] = cap
-    backward[4, :last] = cap[::-1]
+        kappa_forward[index], kappa_s_forward[index] = kappa[index], kappa_s[index]
+        kappa_backward[index] = kappa[last - index]
+        kappa_s_backward[index] = -kappa_s[last - index]
+    for index in range(last):
+        rise_forward[index] = kappa_forward[index + 1] - kappa_forward[index]
+        rise_s_forward[index] = kappa_s_forward[index + 1] - kappa_s_forward[index]
+        rise_backward[index] = kappa_backward[index + 1] - kappa_backward[index]
+        rise_s_backward[index] = kappa_s_backward[index + 1] - kappa_s_backward[index]
+        cap_forward[index], cap_backward[index] = cap[index], cap[last - 1 - index]
+    # The last point's rises and cap (never read) are 0.
+    rise_forward[last] = rise_s_forward[last] = cap_forward[last] = 0.0
+    rise_backward[last] = rise_s_backward[last] = cap_backward[last] = 0.0
     return forward, backward
 
 
@@ -200,7 +207,7 @@ class _Scanner:
         key = _THREE_FLOATS.pack(s, v, a)
         scan = self._kept.pop(key, None)
         if scan is None:
-            scan = _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2)
+            scan = _Scan(s, v, a, end, max(int(self.budget[0]), 0) + 2, key)
         else:
             scan.restart(end)
         self._handed = scan
@@ -225,12 +232,12 @@ class _Scan:
 
     __slots__ = ('states', 'info', 'floats', 'key')
 
-    def __init__(self, s, v, a, end, capacity):
+    def __init__(self, s, v, a, end, capacity, key):
         # Floats whatever the caller holds: one compiled signature (the warm-up's).
         self.states, self.info, self.floats = _new_scan(
             float(s), float(v), float(a), float(end), int(capacity))
-        # Its start (see _Scanner.scan).
-        self.key = _THREE_FLOATS.pack(s, v, a)
+        # Its start, _THREE_FLOATS.pack(s, v, a) (see _Scanner.scan).
+        self.key = key
 
     def restart(self, end):
         """Start the scan again towards ``end``, the states it took known (see _Scanner.scan)."""

@@ -38,7 +38,7 @@ from .arc_scan import (
     _STOPPED, _table_at, _time_at, _TWO)
 from .compiled import kernel
 from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
+from .limits import _ACCEL_MARGIN, _cap_values, _even_samples, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
     _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows, _straight_motion)
@@ -128,7 +128,7 @@ class _ArcPlanner:
         intervals = int(min(_TABLE_INTERVALS_MAX, max(_TABLE_INTERVALS, 2 ** math.ceil(
             math.log2(self.length / bend.min_radius)))))
         kappa_t, kappa_s_t, sigma = bend.curvature_on_grid(2 * intervals + 1)[1:]
-        grid = np.linspace(0.0, self.length, intervals + 1)
+        grid = _even_samples(0.0, self.length, intervals + 1)
         kappa, kappa_s = np.empty(grid.size), np.empty(grid.size)
         _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s)
         # The speed cap as stairs of _CAP_STAIR cells, each at the lowest value it spans: the
@@ -589,7 +589,8 @@ def _optimal_motion(path, limits, speed_cap):
     """Build the time-optimal profile (see :func:`time_motion`)."""
     if path.arc is None:
         return _straight_motion(path, limits, speed_cap, 'time_optimal')
-    c1, arc_length, c2 = (float(value) for value in path.segment_lengths)
+    # Python floats (as the lines' keys hold them), one conversion for the three.
+    c1, arc_length, c2 = path.segment_lengths.tolist()
     planner = _ArcPlanner(path, limits, speed_cap)
     entry = planner.end_state(planner.end_speed(c1, True, speed_cap), c1, True, speed_cap)
     exit_state = planner.end_state(planner.end_speed(c2, False, speed_cap), c2, False,
@@ -632,7 +633,7 @@ def _optimal_motion(path, limits, speed_cap):
 def _with_lines(planner, speed_cap, arc_rows, entry, exit_state):
     """Return (lift rows, arc rows, descent rows, entry, exit), or None if a line fails."""
     path = planner.path
-    c1, arc_length, _ = (float(value) for value in path.segment_lengths)
+    c1, arc_length, _ = path.segment_lengths.tolist()
     lift, descent = [], []
     if c1 > 0.0:
         lift = planner.line_rows((0.0, 0.0, 0.0), (c1, entry[0], entry[1]), speed_cap, 0.0, c1)

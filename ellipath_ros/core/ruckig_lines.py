@@ -19,13 +19,18 @@ Ruckig's own error text is kept where it refuses a state (see :func:`_ruckig_sol
 """
 
 import math
+import threading
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN
+from .limits import (
+    _ACCEL_MARGIN, _cap_values, _even_samples, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN)
 from .motion import _PieceList, TimedMotion
+
+# Each thread's Ruckig objects (see _solver).
+_SOLVERS = threading.local()
 
 
 def _ruckig_rows(start, target, speed, accel, jerk):
@@ -45,15 +50,15 @@ def _ruckig_solution(start, target, speed, accel, jerk):
 
     Each row is (duration, s, s', s'', s''') of one constant-jerk piece.
     """
-    data = InputParameter(1)
+    data, ruckig, trajectory = _solver()
+    # Every input a solve reads is set anew: nothing of the previous solve carries over.
     data.current_position, data.current_velocity, data.current_acceleration = (
-        [value] for value in start)
+        [start[0]], [start[1]], [start[2]])
     data.target_position, data.target_velocity, data.target_acceleration = (
-        [value] for value in target)
+        [target[0]], [target[1]], [target[2]])
     data.max_velocity, data.max_acceleration, data.max_jerk = [speed], [accel], [jerk]
-    trajectory = Trajectory(1)
     try:
-        result = Ruckig(1).calculate(data, trajectory)
+        result = ruckig.calculate(data, trajectory)
     except RuckigError as error:
         # Ruckig refuses states beyond its limits (e.g. a target acceleration above them).
         return None, f'Ruckig refused the states: {str(error).strip()}'
@@ -62,18 +67,43 @@ def _ruckig_solution(start, target, speed, accel, jerk):
     profile = trajectory.profiles[0][0]
     brake = profile.brake
     # Each attribute read converts the whole array to a list: read once, zipped per phase (the
-    # brake's two, then the profile's seven; zip stops at the durations, the shortest).
-    rows = [row for phases in (brake, profile)
-            for row in zip(phases.t, phases.p, phases.v, phases.a, phases.j) if row[0] > 0.0]
+    # brake's two, only if one of them lasts, then the profile's seven; zip stops at the
+    # durations, the shortest).
+    durations = brake.t
+    rows = ([row for row in zip(durations, brake.p, brake.v, brake.a, brake.j) if row[0] > 0.0]
+            if durations[0] > 0.0 or durations[1] > 0.0 else [])
+    rows += [row for row in zip(profile.t, profile.p, profile.v, profile.a, profile.j)
+             if row[0] > 0.0]
     for duration, _, v, a, j in rows:
-        # Smallest speed on the piece: at its ends or where s'' = 0 inside it.
-        ends = [v, v + a * duration + 0.5 * j * duration ** 2]
+        # Smallest speed on the piece: at its ends or where s'' = 0 inside it (of equals the
+        # first, as min() keeps it).
+        lowest = v
+        end_speed = v + a * duration + 0.5 * j * duration ** 2
+        if end_speed < lowest:
+            lowest = end_speed
         if j != 0.0 and 0.0 < -a / j < duration:
-            ends.append(v - 0.5 * a * a / j)
-        if min(ends) < -1e-9:
-            return None, (f"Ruckig's motion runs backwards (speed down to {min(ends):.3g} "
+            vertex_speed = v - 0.5 * a * a / j
+            if vertex_speed < lowest:
+                lowest = vertex_speed
+        if lowest < -1e-9:
+            return None, (f"Ruckig's motion runs backwards (speed down to {lowest:.3g} "
                           'm/s): the distance is too short for the end states')
     return rows, None
+
+
+def _solver():
+    """
+    Return this thread's (InputParameter, Ruckig, Trajectory) of one degree of freedom.
+
+    Made once per thread instead of per solve (a few microseconds, eight solves a request): a
+    solve sets every input it reads and overwrites the trajectory, so none depends on the one
+    before; one set per thread, as the node may plan in more than one.
+    """
+    try:
+        return _SOLVERS.parts
+    except AttributeError:
+        _SOLVERS.parts = InputParameter(1), Ruckig(1), Trajectory(1)
+        return _SOLVERS.parts
 
 
 def _reach_speed(distance, accel, jerk):
@@ -104,8 +134,8 @@ def _line_speed(limits, speed_cap, s_from, s_to):
     """Return the speed [m/s] a line's pieces aim at on [s_from, s_to] (limit and cap)."""
     speed = limits.max_speed * _SPEED_MARGIN
     if speed_cap is not None and s_to > s_from:
-        speed = min(speed, _SPEED_MARGIN * float(np.min(_cap_values(
-            speed_cap, np.linspace(s_from, s_to, _LIMIT_SAMPLES)))))
+        speed = min(speed, _SPEED_MARGIN * float(_cap_values(
+            speed_cap, _even_samples(float(s_from), float(s_to), _LIMIT_SAMPLES)).min()))
     return speed
 
 

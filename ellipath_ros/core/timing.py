@@ -106,7 +106,7 @@ def _excess(s, speed, peaks, limits, speed_cap):
     factor = max(peak_speed / limits.max_speed, math.sqrt(peak_accel / limits.max_accel),
                  (peak_jerk / limits.max_jerk) ** (1.0 / 3.0))
     if speed_cap is not None:
-        factor = max(factor, float(np.max(speed / _cap_values(speed_cap, s))))
+        factor = max(factor, float((speed / _cap_values(speed_cap, s)).max()))
     return factor
 
 
