@@ -96,15 +96,19 @@ class _JerkPieces:
 @kernel
 def _piece_states(times, s0, v0, a0, jerk, t, state):
     """Fill ``state`` (4, N) with :meth:`_JerkPieces.state` at ``t`` (N,)."""
-    last = jerk.size - 1
     for row in range(t.size):
-        index = min(max(np.searchsorted(times, t[row], side='right') - 1, 0), last)
-        x = t[row] - times[index]
-        j, a, v = jerk[index], a0[index], v0[index]
-        state[0, row] = s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0))
-        state[1, row] = v + x * (a + x * j / 2.0)
-        state[2, row] = a + x * j
-        state[3, row] = j
+        state[0, row], state[1, row], state[2, row], state[3, row] = _piece_state(
+            times, s0, v0, a0, jerk, t[row])
+
+
+@kernel(inline=True)
+def _piece_state(times, s0, v0, a0, jerk, t):
+    """Return (s, v, a, j) of :class:`_JerkPieces`' arrays at one time ``t``."""
+    index = min(max(np.searchsorted(times, t, side='right') - 1, 0), jerk.size - 1)
+    x = t - times[index]
+    j, a, v = jerk[index], a0[index], v0[index]
+    return (s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0),
+            a + x * j, j)
 
 
 class _PieceList:
