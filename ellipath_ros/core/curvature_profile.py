@@ -518,13 +518,32 @@ def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
     """
     arc = path.arc
     c1 = path.segment_lengths[0]
-    step = theta[:-1] - theta[1:]
-    pieces = 0.5 * step * (sigma[:-1] + sigma[1:]) - step ** 2 / 12.0 * (sigma_1[:-1]
-                                                                         - sigma_1[1:])
-    ratio = _cap_values(speed_cap, c1 + np.concatenate(([0.0], np.cumsum(pieces)))) / speed
+    lengths = np.empty(theta.size)
+    _trapezoid_lengths(theta, sigma, sigma_1, c1, lengths)
+    ratio = _cap_values(speed_cap, lengths) / speed
     shortlist = np.flatnonzero(ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST))
     s = c1 + arc.s_from_t(arc.t_from_theta(theta[shortlist]))
     return float(np.min(_cap_values(speed_cap, s) / speed[shortlist]))
+
+
+@kernel
+def _trapezoid_lengths(theta, sigma, sigma_1, start, out):
+    """
+    Fill ``out`` (N,) with ``start`` plus the arc length at ``theta`` (N,) by :func:`_cap_rate`.
+
+    The corrected trapezoid rule on ``sigma`` and ``sigma_1`` summed from the first
+    sample, with the operations (and order) of the NumPy formula ``start +
+    concatenate(([0], cumsum(0.5 step (sigma_i + sigma_i+1) - step**2 / 12 (sigma_1,i -
+    sigma_1,i+1))))``: the same lengths bit for bit, in one pass.
+    """
+    out[0] = start + 0.0
+    total = 0.0
+    for index in range(theta.size - 1):
+        step = theta[index] - theta[index + 1]
+        piece = (0.5 * step * (sigma[index] + sigma[index + 1])
+                 - step * step / 12.0 * (sigma_1[index] - sigma_1[index + 1]))
+        total = piece if index == 0 else total + piece
+        out[index + 1] = start + total
 
 
 def _curvature_state(arc, rate, theta):
