@@ -14,6 +14,8 @@
 
 """The timed motion's compiled sampling: states and norms, peaks between samples."""
 
+import math
+
 from ellipath_ros.core import motion as motion_module
 from ellipath_ros.core import optimal_profile
 from ellipath_ros.core.geometry import plan_path
@@ -157,3 +159,25 @@ def test_arc_planner_tables_are_simpsons_lengths_and_numpys_interpolation(join):
             np.full(grid.size, limits.max_speed * optimal_profile._SPEED_MARGIN),
             np.sqrt(accel / kappa), (jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
     np.testing.assert_allclose(planner.ceiling, ceiling, rtol=1e-13)
+
+
+def test_jerk_on_a_line_takes_the_cube_of_pow_bit_for_bit():
+    # Where the curvature rate is zero the kernel cubes the speed by products instead of pow:
+    # the jerk must stay pow's bit for bit, the signs of zero products included.
+    rng = np.random.default_rng(41)
+    count = 4000
+    position, tangent, curvature, rate = rng.normal(size=(4, 3, count))
+    rate[:, : count // 2] = rng.choice([0.0, -0.0], size=(3, count // 2))
+    # Columns with a zero rate on one or two axes only still take pow.
+    rate[0, count // 2: 3 * count // 4] = 0.0
+    tangent[:, ::7] = 0.0
+    curvature[:, ::5] = -0.0
+    v, a, j = rng.normal(size=(3, count)) * rng.choice([1e-3, 1.0, 1e3], size=(3, count))
+    v[::11], v[::13], a[::17] = 0.0, -0.0, -0.0
+    states = np.empty((4, count, 3))
+    motion_module._cartesian_rows(position, tangent, curvature, rate, v, a, j, states)
+    expected = np.array([[
+        j[row] * tangent[axis, row] + (3.0 * v[row] * a[row]) * curvature[axis, row]
+        + math.pow(v[row], 3.0) * rate[axis, row] for axis in range(3)] for row in range(count)])
+    assert np.array_equal(states[3], expected)
+    assert np.array_equal(np.signbit(states[3]), np.signbit(expected))

@@ -622,6 +622,13 @@ def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
     """Fill ``states`` (4, N, 3) from the path's rows (3, N) and its law's v, a, j (N,)."""
     for row in range(v.size):
         speed, accel, jerk = v[row], a[row], j[row]
+        if (rate[0, row] == 0.0 and rate[1, row] == 0.0 and rate[2, row] == 0.0
+                and abs(speed) < 1e100):
+            # No curvature rate (a vertical line): the cube only signs a zero product, and
+            # x * x * x has pow's sign and (below 1e100) its finiteness, without pow's cost.
+            cube = speed * speed * speed
+        else:
+            cube = speed ** 3.0
         for axis in range(3):
             states[0, row, axis] = position[axis, row]
             states[1, row, axis] = speed * tangent[axis, row]
@@ -629,7 +636,7 @@ def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
                                     + (speed * speed) * curvature[axis, row])
             states[3, row, axis] = (jerk * tangent[axis, row]
                                     + (3.0 * speed * accel) * curvature[axis, row]
-                                    + (speed ** 3.0) * rate[axis, row])
+                                    + cube * rate[axis, row])
 
 
 @kernel
