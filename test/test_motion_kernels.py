@@ -181,3 +181,34 @@ def test_jerk_on_a_line_takes_the_cube_of_pow_bit_for_bit():
         + math.pow(v[row], 3.0) * rate[axis, row] for axis in range(3)] for row in range(count)])
     assert np.array_equal(states[3], expected)
     assert np.array_equal(np.signbit(states[3]), np.signbit(expected))
+
+
+def steps_by_arrays(times, sizes, marks, jerk, epsilon, duration):
+    """Return the merged jerk steps by the NumPy formulas they were first written in."""
+    if marks.size and times.size:
+        apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+        times, sizes = times[apart], sizes[apart]
+    times = np.concatenate((times, marks))
+    sizes = np.concatenate((sizes, np.linalg.norm(jerk[marks.size:] - jerk[:marks.size],
+                                                  axis=1)))
+    order = np.argsort(times, kind='stable')
+    times, sizes = times[order], sizes[order]
+    unique = np.concatenate(([True], np.diff(times) > 0.0))
+    inside = unique & (times > 0.0) & (times < duration)
+    return times[inside], sizes[inside]
+
+
+def test_merged_jerk_steps_are_the_array_formulas_bit_for_bit():
+    rng = np.random.default_rng(43)
+    for count, mark_count in ((0, 0), (5, 0), (0, 3), (40, 4), (300, 2)):
+        times = np.sort(rng.uniform(-0.1, 1.1, count))
+        # Repeated times, times at a mark's distance and the ends.
+        times[::9] = np.round(times[::9], 1)
+        marks = rng.uniform(0.0, 1.0, mark_count)
+        if count and mark_count:
+            times[1] = marks[0] + 5e-10
+        sizes = rng.uniform(0.0, 50.0, count)
+        jerk = rng.normal(size=(2 * mark_count, 3)) * 100.0
+        found = motion_module._merged_steps(times, sizes, marks, jerk, 1e-9, 1.0)
+        expected = steps_by_arrays(times, sizes, marks, jerk, 1e-9, 1.0)
+        assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))
