@@ -216,3 +216,11 @@ def test_panel_table_holds_the_quadratures_nodes():
     assert np.array_equal(panels[:, 1], libm(math.cos, nodes))
     assert np.array_equal(panels[:, 2], libm(math.sin, nodes))
     assert np.all(panels[:, 3] == np.abs(half)[:, None])
+
+
+def test_ellipse_speed_alone_is_ellipse_sigmas_bit_for_bit():
+    theta = np.random.default_rng(29).uniform(-7.0, 7.0, (64, 8))
+    for l_, h, k in random_ellipses(10, 30):
+        arc = EllipticArc(l_, h, k)
+        assert np.array_equal(geometry.ellipse_speed(arc.a, arc.b, theta),
+                              geometry.ellipse_sigma(arc.a, arc.b, theta)[0])

@@ -50,7 +50,7 @@ import numpy as np
 
 from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
-from .geometry import EllipticArc
+from .geometry import ellipse_speed, EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
 from .motion import (_piece_sample_times, _piece_state, _pieces_law, _Sequence,
                      TimedMotion)
@@ -110,7 +110,7 @@ class _CurvatureArcLaw:
             nodes = (0.5 * (edges[1:] + edges[:-1]))[..., None] + half[..., None] * _GL_NODES
             object.__setattr__(self, '_quadrature', (
                 edges, np.abs(half) * (self.arc.a * self.arc.b),
-                self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS))
+                ellipse_speed(self.arc.a, self.arc.b, nodes) ** -3 @ _GL_WEIGHTS))
         edges, scaled_half, sums = self._quadrature
         object.__setattr__(self, '_edges', edges)
         object.__setattr__(self, '_times', np.concatenate(
@@ -130,7 +130,8 @@ class _CurvatureArcLaw:
         half = 0.5 * (theta_to - theta_from)
         nodes = (0.5 * (theta_to + theta_from))[..., None] + half[..., None] * _GL_NODES
         ab = self.arc.a * self.arc.b
-        return np.abs(half) * ab / self.rate * (self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS)
+        inverse_cube = ellipse_speed(self.arc.a, self.arc.b, nodes) ** -3
+        return np.abs(half) * ab / self.rate * (inverse_cube @ _GL_WEIGHTS)
 
     @functools.cached_property
     def _hermite_table(self):
@@ -553,7 +554,7 @@ def _curvature_state(arc, rate, theta):
 
 def _rule_speed(arc, rate, theta):
     """Return s' = K sigma**4 / (a b) at a scalar ``theta``, as the law's states on arrays did."""
-    return float((rate * arc.sigma(np.array([theta]))[0] ** 4 / (arc.a * arc.b))[0])
+    return float((rate * ellipse_speed(arc.a, arc.b, np.array([theta])) ** 4 / (arc.a * arc.b))[0])
 
 
 def _curvature_rates(arc, rate, theta):

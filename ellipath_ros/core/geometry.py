@@ -227,10 +227,21 @@ def ellipse_sigma(a, b, theta):
     theta = np.asarray(theta, dtype=float)
     spread = a * a - b * b
     sin_theta, cos_theta = np.sin(theta), np.cos(theta)
-    sigma = np.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma = _sigma_of(a, b, sin_theta, cos_theta)
     sigma_1 = spread * sin_theta * cos_theta / sigma
     sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
     return sigma, sigma_1, sigma_2
+
+
+def ellipse_speed(a, b, theta):
+    """Return sigma = |dP/dtheta| alone, as :func:`ellipse_sigma` computes it [m/rad]."""
+    theta = np.asarray(theta, dtype=float)
+    return _sigma_of(a, b, np.sin(theta), np.cos(theta))
+
+
+def _sigma_of(a, b, sin_theta, cos_theta):
+    """Return sigma from sin theta and cos theta (arrays)."""
+    return np.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
 
 
 def radius_of_curvature_derivatives(a, b, theta):
@@ -770,7 +781,7 @@ class EllipticArc(_ParametricArc):
 
     def radius_of_curvature(self, theta):
         """Return rho(theta) = sigma**3 / (a b), the paper's eq. (34), shape of ``theta`` [m]."""
-        return ellipse_sigma(self.a, self.b, theta)[0] ** 3 / (self.a * self.b)
+        return ellipse_speed(self.a, self.b, theta) ** 3 / (self.a * self.b)
 
     def sigma(self, theta):
         """Return sigma and its first two derivatives by theta (see :func:`ellipse_sigma`)."""
