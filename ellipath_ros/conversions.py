@@ -20,6 +20,7 @@ messages or NumPy arrays, so each can be tested on its own.
 """
 
 from dataclasses import dataclass
+import functools
 import struct
 
 from builtin_interfaces.msg import Duration
@@ -216,6 +217,27 @@ def _point_layout(offset, joints):
     return fields, end + 4 + _CDR_STAMP.size - offset
 
 
+@functools.lru_cache(maxsize=16)
+def _point_dtype(offset, joints):
+    """
+    Return the structured dtype of a JointTrajectoryPoint serialized from ``offset``.
+
+    Its fields are :func:`_point_layout`'s: each array's count (uint32) and values (float64),
+    and time_from_start's ``sec`` (int32) and ``nanosec`` (uint32), little-endian; its size
+    is the point's, so that an array of them is a run of serialized points.
+    """
+    layout, size = _point_layout(offset, joints)
+    names, formats, offsets = [], [], []
+    for name in _POINT_ARRAYS:
+        names += [name + '_count', name]
+        formats += ['<u4', ('<f8', (joints,))]
+        offsets += [layout[name + '_count'], layout[name]]
+    names += ['sec', 'nanosec']
+    formats += ['<i4', '<u4']
+    offsets += [layout['time_from_start'], layout['time_from_start'] + 4]
+    return np.dtype({'names': names, 'formats': formats, 'offsets': offsets, 'itemsize': size})
+
+
 def serialized_joint_trajectory(trajectory, frame_id):
     """
     Serialize the core's JointTrajectoryData as a trajectory_msgs/JointTrajectory, stamp zero.
@@ -245,22 +267,16 @@ def serialized_joint_trajectory(trajectory, frame_id):
     writer.raw(_CDR_UINT32.pack(count), 4)
     # The first point's layout depends on where it starts; the second starts 4 bytes past a
     # multiple of 8, and so does every later one (such a point's size is a multiple of 8).
-    first, first_size = _point_layout(writer.size, joints)
-    rest, rest_size = _point_layout(writer.size + first_size, joints)
-    points = np.zeros(first_size + (count - 1) * rest_size, dtype=np.uint8)
-    joint_count = np.frombuffer(_CDR_UINT32.pack(joints), dtype=np.uint8)
-    for layout, block, rows in (
-            (first, points[:first_size].reshape(1, first_size), slice(0, 1)),
-            (rest, points[first_size:].reshape(count - 1, rest_size), slice(1, None))):
+    first = _point_dtype(writer.size, joints)
+    rest = _point_dtype(writer.size + first.itemsize, joints)
+    for dtype, rows in ((first, slice(0, 1)), (rest, slice(1, count))):
+        # Zeros: the padding and effort's count.
+        block = np.zeros(rows.stop - rows.start, dtype)
         for name, values in zip(_POINT_ARRAYS, arrays):
-            block[:, layout[name + '_count']:layout[name + '_count'] + 4] = joint_count
-            block[:, layout[name]:layout[name] + 8 * joints] = (
-                values[rows].view(np.uint8).reshape(-1, 8 * joints))
-        at = layout['time_from_start']
-        block[:, at:at + 4] = seconds[rows].astype('<i4').view(np.uint8).reshape(-1, 4)
-        block[:, at + 4:at + 8] = (
-            nanoseconds_left[rows].astype('<u4').view(np.uint8).reshape(-1, 4))
-    writer.parts.append(points.tobytes())
+            block[name + '_count'] = joints
+            block[name] = values[rows]
+        block['sec'], block['nanosec'] = seconds[rows], nanoseconds_left[rows]
+        writer.parts.append(block.tobytes())
     return SerializedTrajectory(
         b''.join(writer.parts),
         JointTrajectoryData(tuple(trajectory.joint_names),

@@ -14,9 +14,16 @@
 
 """The curvature profile's compiled and tabulated parts against plain computations of the same."""
 
+import dataclasses
+
+from ellipath_ros.bench.latency import random_pairs
+from ellipath_ros.core import motion as motion_module
 from ellipath_ros.core.curvature_profile import (
-    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, curvature_nodes)
+    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, _CurvatureSequence, _trapezoid_lengths,
+    curvature_nodes)
 from ellipath_ros.core.geometry import EllipticArc, plan_path, radius_of_curvature_derivatives
+from ellipath_ros.core.planner import _check_reach_and_speed_cap, PlannerConfig
+from ellipath_ros.core.timing import time_motion
 import numpy as np
 import pytest
 
@@ -167,3 +174,41 @@ def test_law_at_another_rate_keeps_the_time_table_bit_for_bit():
         fresh = _CurvatureArcLaw(law.arc, rate, 0.01, law.theta_start, law.theta_end)
         assert np.array_equal(reused._times, fresh._times)
         assert reused.duration == pytest.approx(law.duration / rate, rel=1e-14)
+
+
+def test_trapezoid_lengths_are_the_numpy_formula_bit_for_bit():
+    path = plan_path([0, 0, -0.8], [0.3, 0, -0.75])
+    arc, c1 = path.arc, path.segment_lengths[0]
+    theta = np.linspace(arc.theta_T1, arc.theta_T2, 4001)
+    _, _, _, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
+    step = theta[:-1] - theta[1:]
+    pieces = 0.5 * step * (sigma[:-1] + sigma[1:]) - step ** 2 / 12.0 * (sigma_1[:-1]
+                                                                         - sigma_1[1:])
+    expected = c1 + np.concatenate(([0.0], np.cumsum(pieces)))
+    found = np.empty(theta.size)
+    _trapezoid_lengths(theta, sigma, sigma_1, c1, found)
+    assert np.array_equal(found, expected)
+    # Within the arc's length of the exact arc length (the rule's error is ~h**4).
+    np.testing.assert_allclose(found, c1 + arc.s_from_t(arc.t_from_theta(theta)), rtol=0,
+                               atol=1e-9)
+
+
+def test_sequence_states_in_one_pass_equal_each_laws_bit_for_bit():
+    # The curvature profile's sequence evaluates all its laws in one compiled pass: the
+    # same numbers as the generic sequence, which calls each law's own state.
+    config = dataclasses.replace(PlannerConfig(), profile='curvature', join='paper')
+    rng = np.random.default_rng(31)
+    for pick, place in random_pairs(8, seed=12):
+        path = plan_path(pick, place, config.pick_clearance, config.place_clearance,
+                         config.arc, config.join, config.join_tolerance)
+        sequence = time_motion(path, config.limits, profile='curvature', r=config.curvature_r,
+                               speed_cap=_check_reach_and_speed_cap(path, config)).law
+        assert isinstance(sequence, _CurvatureSequence)
+        duration = sequence.duration
+        bounds = sequence.bounds()[0]
+        for t in (np.sort(rng.uniform(0.0, duration, 400)), rng.uniform(-0.1, 1.1, 400) * duration,
+                  np.concatenate((bounds, bounds - 1e-9 * duration, bounds + 1e-9 * duration)),
+                  np.array(sequence._starts)):
+            found = sequence.state(t)
+            expected = motion_module._Sequence.state(sequence, t)
+            assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))

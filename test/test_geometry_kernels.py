@@ -142,7 +142,8 @@ def test_table_and_lookup_kernels_equal_their_python_forms():
     panel_t, panel_s, quintics = bend._table
     plain_s, plain_quintics = np.empty(panel_s.size), np.empty(quintics.shape)
     geometry._table_rows.py_func(bend._bend, panel_t, geometry.GAUSS_LEGENDRE_NODES,
-                                 geometry.GAUSS_LEGENDRE_WEIGHTS, plain_s, plain_quintics)
+                                 geometry.GAUSS_LEGENDRE_WEIGHTS, *geometry._panel_table(),
+                                 plain_s, plain_quintics)
     np.testing.assert_allclose(panel_s, plain_s, rtol=1e-13, atol=1e-15)
     np.testing.assert_allclose(quintics, plain_quintics, rtol=1e-11, atol=1e-13)
     t = np.random.default_rng(21).uniform(-0.1, math.pi + 0.1, 300)
@@ -170,5 +171,56 @@ def test_curvature_grid_gives_the_curvature_and_the_speed_of_one_evaluation():
     np.testing.assert_allclose((kappa, rate), bend.curvature_and_rate(t), rtol=1e-14,
                                atol=1e-12)
     plain = np.empty((3, t.size))
-    geometry._grid_rows.py_func(bend._bend, t.copy(), *plain)
+    geometry._grid_rows.py_func(bend._bend, geometry._trig_table(t), *plain)
     np.testing.assert_allclose(plain, (kappa, rate, speed), rtol=1e-13, atol=1e-12)
+
+
+def test_shared_cosines_give_the_tables_of_the_curves_own_bit_for_bit():
+    # The dense grid's and the panels' cosines and sines are computed once for every curve:
+    # its grid and arc-length table equal those that evaluate them per curve.
+    rng = np.random.default_rng(23)
+    for l_, h, k in random_ellipses(20, 24):
+        ellipse = EllipticArc(l_, h, k)
+        for bend in (ellipse, geometry.BlendedArc(
+                ellipse, *rng.uniform(0.05, geometry._BLEND_MAX_SPAN, 2))):
+            t, kappa, rate, speed = bend.curvature_on_grid(geometry._DENSE_SAMPLES)
+            own_kappa, own_rate, own_speed = (np.empty(t.size) for _ in range(3))
+            geometry._curvature_rows(bend._bend, t.copy(), own_kappa, own_rate)
+            geometry._speed_rows(bend._bend, t.copy(), own_speed)
+            for shared, own in ((kappa, own_kappa), (rate, own_rate), (speed, own_speed)):
+                assert np.array_equal(shared, own)
+            panel_t, panel_s, quintics = bend._table
+            # No shared grid: every bound and panel evaluated on its own.
+            own_s, own_quintics = np.empty(panel_s.size), np.empty(quintics.shape)
+            grid, panels = geometry._panel_table()
+            geometry._table_rows(bend._bend, panel_t, geometry.GAUSS_LEGENDRE_NODES,
+                                 geometry.GAUSS_LEGENDRE_WEIGHTS, grid[:, :0], panels[:0],
+                                 own_s, own_quintics)
+            assert np.array_equal(panel_s, own_s) and np.array_equal(quintics, own_quintics)
+
+
+def libm(function, values):
+    """Return ``function`` (math.cos, math.sin) of each of ``values``, shaped alike."""
+    return np.array([function(value) for value in values.ravel()]).reshape(values.shape)
+
+
+def test_panel_table_holds_the_quadratures_nodes():
+    grid, panels = geometry._panel_table()
+    assert np.array_equal(grid[0], geometry._panel_grid())
+    assert np.array_equal(grid[1:], (libm(math.cos, grid[0]), libm(math.sin, grid[0])))
+    edges = geometry._panel_grid()
+    half = 0.5 * (edges[1:] - edges[:-1])
+    nodes = (0.5 * (edges[1:] + edges[:-1])[:, None]
+             + half[:, None] * geometry.GAUSS_LEGENDRE_NODES)
+    assert np.array_equal(panels[:, 0], nodes)
+    assert np.array_equal(panels[:, 1], libm(math.cos, nodes))
+    assert np.array_equal(panels[:, 2], libm(math.sin, nodes))
+    assert np.all(panels[:, 3] == np.abs(half)[:, None])
+
+
+def test_ellipse_speed_alone_is_ellipse_sigmas_bit_for_bit():
+    theta = np.random.default_rng(29).uniform(-7.0, 7.0, (64, 8))
+    for l_, h, k in random_ellipses(10, 30):
+        arc = EllipticArc(l_, h, k)
+        assert np.array_equal(geometry.ellipse_speed(arc.a, arc.b, theta),
+                              geometry.ellipse_sigma(arc.a, arc.b, theta)[0])

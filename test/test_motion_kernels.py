@@ -14,6 +14,8 @@
 
 """The timed motion's compiled sampling: states and norms, peaks between samples."""
 
+import math
+
 from ellipath_ros.core import motion as motion_module
 from ellipath_ros.core import optimal_profile
 from ellipath_ros.core.geometry import plan_path
@@ -157,3 +159,56 @@ def test_arc_planner_tables_are_simpsons_lengths_and_numpys_interpolation(join):
             np.full(grid.size, limits.max_speed * optimal_profile._SPEED_MARGIN),
             np.sqrt(accel / kappa), (jerk / np.hypot(kappa ** 2, kappa_s)) ** (1.0 / 3.0)])
     np.testing.assert_allclose(planner.ceiling, ceiling, rtol=1e-13)
+
+
+def test_jerk_on_a_line_takes_the_cube_of_pow_bit_for_bit():
+    # Where the curvature rate is zero the kernel cubes the speed by products instead of pow:
+    # the jerk must stay pow's bit for bit, the signs of zero products included.
+    rng = np.random.default_rng(41)
+    count = 4000
+    position, tangent, curvature, rate = rng.normal(size=(4, 3, count))
+    rate[:, : count // 2] = rng.choice([0.0, -0.0], size=(3, count // 2))
+    # Columns with a zero rate on one or two axes only still take pow.
+    rate[0, count // 2: 3 * count // 4] = 0.0
+    tangent[:, ::7] = 0.0
+    curvature[:, ::5] = -0.0
+    v, a, j = rng.normal(size=(3, count)) * rng.choice([1e-3, 1.0, 1e3], size=(3, count))
+    v[::11], v[::13], a[::17] = 0.0, -0.0, -0.0
+    states = np.empty((4, count, 3))
+    motion_module._cartesian_rows(position, tangent, curvature, rate, v, a, j, states)
+    expected = np.array([[
+        j[row] * tangent[axis, row] + (3.0 * v[row] * a[row]) * curvature[axis, row]
+        + math.pow(v[row], 3.0) * rate[axis, row] for axis in range(3)] for row in range(count)])
+    assert np.array_equal(states[3], expected)
+    assert np.array_equal(np.signbit(states[3]), np.signbit(expected))
+
+
+def steps_by_arrays(times, sizes, marks, jerk, epsilon, duration):
+    """Return the merged jerk steps by the NumPy formulas they were first written in."""
+    if marks.size and times.size:
+        apart = np.abs(times[:, None] - marks[None, :]).min(axis=1) > epsilon
+        times, sizes = times[apart], sizes[apart]
+    times = np.concatenate((times, marks))
+    sizes = np.concatenate((sizes, np.linalg.norm(jerk[marks.size:] - jerk[:marks.size],
+                                                  axis=1)))
+    order = np.argsort(times, kind='stable')
+    times, sizes = times[order], sizes[order]
+    unique = np.concatenate(([True], np.diff(times) > 0.0))
+    inside = unique & (times > 0.0) & (times < duration)
+    return times[inside], sizes[inside]
+
+
+def test_merged_jerk_steps_are_the_array_formulas_bit_for_bit():
+    rng = np.random.default_rng(43)
+    for count, mark_count in ((0, 0), (5, 0), (0, 3), (40, 4), (300, 2)):
+        times = np.sort(rng.uniform(-0.1, 1.1, count))
+        # Repeated times, times at a mark's distance and the ends.
+        times[::9] = np.round(times[::9], 1)
+        marks = rng.uniform(0.0, 1.0, mark_count)
+        if count and mark_count:
+            times[1] = marks[0] + 5e-10
+        sizes = rng.uniform(0.0, 50.0, count)
+        jerk = rng.normal(size=(2 * mark_count, 3)) * 100.0
+        found = motion_module._merged_steps(times, sizes, marks, jerk, 1e-9, 1.0)
+        expected = steps_by_arrays(times, sizes, marks, jerk, 1e-9, 1.0)
+        assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))

@@ -50,9 +50,10 @@ import numpy as np
 
 from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
-from .geometry import EllipticArc
+from .geometry import ellipse_speed, EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
-from .motion import _piece_sample_times, _pieces_law, _Sequence, TimedMotion
+from .motion import (_piece_sample_times, _piece_state, _pieces_law, _Sequence,
+                     TimedMotion)
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
 
 # Where a ramp may end, in shares of the arc's parameter range, after the nodes.
@@ -109,7 +110,7 @@ class _CurvatureArcLaw:
             nodes = (0.5 * (edges[1:] + edges[:-1]))[..., None] + half[..., None] * _GL_NODES
             object.__setattr__(self, '_quadrature', (
                 edges, np.abs(half) * (self.arc.a * self.arc.b),
-                self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS))
+                ellipse_speed(self.arc.a, self.arc.b, nodes) ** -3 @ _GL_WEIGHTS))
         edges, scaled_half, sums = self._quadrature
         object.__setattr__(self, '_edges', edges)
         object.__setattr__(self, '_times', np.concatenate(
@@ -129,7 +130,8 @@ class _CurvatureArcLaw:
         half = 0.5 * (theta_to - theta_from)
         nodes = (0.5 * (theta_to + theta_from))[..., None] + half[..., None] * _GL_NODES
         ab = self.arc.a * self.arc.b
-        return np.abs(half) * ab / self.rate * (self.arc.sigma(nodes)[0] ** -3 @ _GL_WEIGHTS)
+        inverse_cube = ellipse_speed(self.arc.a, self.arc.b, nodes) ** -3
+        return np.abs(half) * ab / self.rate * (inverse_cube @ _GL_WEIGHTS)
 
     @functools.cached_property
     def _hermite_table(self):
@@ -289,26 +291,102 @@ def _law_states(t, times, panels, a, b, rate, out):
     :func:`_panel_polynomials`. Sorted times (the usual case) find their panel by a
     step from the previous one, others by bisection.
     """
-    last = times.size - 2
-    duration = times[last + 1]
     factors = _path_factors(a, b, rate)
     panel = 0
     for index in range(t.size):
-        now = min(max(t[index], 0.0), duration)
-        if now < times[panel] or (now >= times[panel + 1] and panel < last):
-            panel = min(max(np.searchsorted(times, now, side='right') - 1, 0), last)
-        x = (now - times[panel]) / max(times[panel + 1] - times[panel], 1e-300)
-        row = panels[panel]
-        theta = row[0] + x * (row[1] + x * (row[2] + x * (row[3] + x * (
-            row[4] + x * (row[5] + x * (row[6] + x * row[7]))))))
-        theta = min(max(theta, row[16]), row[17])
-        s = row[8] + x * (row[9] + x * (row[10] + x * (row[11] + x * (
-            row[12] + x * (row[13] + x * (row[14] + x * row[15]))))))
-        sigma, sigma_1, sigma_2 = _sigma_and_rates(theta, a, b)
-        out[0, index] = theta
-        out[1, index] = min(max(s, row[18]), row[19])
-        out[2, index], out[3, index], out[4, index] = _path_rates(sigma, sigma_1, sigma_2,
-                                                                  factors)
+        (out[0, index], out[1, index], out[2, index], out[3, index], out[4, index],
+         panel) = _law_state(t[index], times, panels, a, b, factors, panel)
+
+
+@kernel(inline=True)
+def _law_state(t, times, panels, a, b, factors, panel):
+    """
+    Return theta, s, s', s'', s''' of the law at one time ``t``, and its panel.
+
+    ``times``, ``panels``, ``a`` and ``b`` are as :func:`_law_states` takes them, ``factors``
+    is :func:`_path_factors`; the search for the panel starts from ``panel`` (the previous
+    time's).
+    """
+    last = times.size - 2
+    now = min(max(t, 0.0), times[last + 1])
+    if now < times[panel] or (now >= times[panel + 1] and panel < last):
+        panel = min(max(np.searchsorted(times, now, side='right') - 1, 0), last)
+    x = (now - times[panel]) / max(times[panel + 1] - times[panel], 1e-300)
+    row = panels[panel]
+    theta = row[0] + x * (row[1] + x * (row[2] + x * (row[3] + x * (
+        row[4] + x * (row[5] + x * (row[6] + x * row[7]))))))
+    theta = min(max(theta, row[16]), row[17])
+    s = row[8] + x * (row[9] + x * (row[10] + x * (row[11] + x * (
+        row[12] + x * (row[13] + x * (row[14] + x * row[15]))))))
+    sigma, sigma_1, sigma_2 = _sigma_and_rates(theta, a, b)
+    speed, accel, jerk = _path_rates(sigma, sigma_1, sigma_2, factors)
+    return theta, min(max(s, row[18]), row[19]), speed, accel, jerk, panel
+
+
+@dataclass(frozen=True, eq=False)
+class _CurvatureSequence(_Sequence):
+    """
+    The curvature profile's laws: lines and ramps (constant-jerk pieces) and one arc law.
+
+    :meth:`state` evaluates them in one compiled pass (:func:`_sequence_rows`), each time
+    by its law's own formulas: the same numbers as :meth:`_Sequence.state`, without a
+    Python call per law.
+    """
+
+    @functools.cached_property
+    def _arrays(self):
+        """Return the laws as :func:`_sequence_rows` takes them after ``starts``."""
+        arc_law = next(index for index, law in enumerate(self.laws)
+                       if isinstance(law, _CurvatureArcLaw))
+        arc = self.laws[arc_law]
+        pieces = [law for law in self.laws if law is not arc]
+        # Each law's share of the pieces' arrays (none for the arc law).
+        time_counts = [0 if law is arc else law.times.size for law in self.laws]
+        piece_counts = [0 if law is arc else law.jerk.size for law in self.laws]
+        piece_rows = np.vstack([np.concatenate([getattr(law, name) for law in pieces])
+                                for name in ('s0', 'v0', 'a0', 'jerk')])
+        return (np.concatenate([law.times for law in pieces]), piece_rows,
+                np.cumsum([0] + time_counts), np.cumsum([0] + piece_counts), arc_law,
+                *arc._hermite_table, arc.arc.a, arc.arc.b, arc.rate)
+
+    def state(self, t):
+        """Return :meth:`_Sequence.state` at times ``t`` (N,)."""
+        t = np.ascontiguousarray(t, dtype=float)
+        rows = np.empty((4, t.size))
+        _sequence_rows(t, self._starts, *self._arrays, rows)
+        return tuple(rows)
+
+
+@kernel
+def _sequence_rows(t, starts, piece_times, piece_rows, first_times, first_pieces, arc_law,
+                   arc_times, arc_panels, a, b, rate, rows):
+    """
+    Fill ``rows`` (4, N) with s, s', s'', s''' of a :class:`_CurvatureSequence` at ``t`` (N,).
+
+    A time's law is the last starting at or before it (the first for earlier times);
+    ``starts`` (L + 1,) are the laws' starts and the end. The constant-jerk laws' arrays
+    are concatenated: law i has ``piece_times[first_times[i]:first_times[i + 1]]`` and
+    the columns ``first_pieces[i]:first_pieces[i + 1]`` of ``piece_rows`` (s0, v0, a0,
+    jerk); law ``arc_law`` is the arc law, with the arrays :func:`_law_states` takes.
+    Each is evaluated at the time from its start, by its own formulas.
+    """
+    factors = _path_factors(a, b, rate)
+    last = starts.size - 2
+    panel = 0
+    for index in range(t.size):
+        law = min(max(np.searchsorted(starts, t[index], side='right') - 1, 0), last)
+        x = t[index] - starts[law]
+        if law == arc_law:
+            _, s, speed, accel, jerk, panel = _law_state(x, arc_times, arc_panels, a, b,
+                                                         factors, panel)
+        else:
+            first, end = first_pieces[law], first_pieces[law + 1]
+            s, speed, accel, jerk = _piece_state(
+                piece_times[first_times[law]:first_times[law + 1]], piece_rows[0, first:end],
+                piece_rows[1, first:end], piece_rows[2, first:end], piece_rows[3, first:end],
+                x)
+        rows[0, index], rows[1, index], rows[2, index], rows[3, index] = (s, speed, accel,
+                                                                          jerk)
 
 
 def curvature_nodes(arc, r=0.77):
@@ -441,13 +519,32 @@ def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
     """
     arc = path.arc
     c1 = path.segment_lengths[0]
-    step = theta[:-1] - theta[1:]
-    pieces = 0.5 * step * (sigma[:-1] + sigma[1:]) - step ** 2 / 12.0 * (sigma_1[:-1]
-                                                                         - sigma_1[1:])
-    ratio = _cap_values(speed_cap, c1 + np.concatenate(([0.0], np.cumsum(pieces)))) / speed
+    lengths = np.empty(theta.size)
+    _trapezoid_lengths(theta, sigma, sigma_1, c1, lengths)
+    ratio = _cap_values(speed_cap, lengths) / speed
     shortlist = np.flatnonzero(ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST))
     s = c1 + arc.s_from_t(arc.t_from_theta(theta[shortlist]))
     return float(np.min(_cap_values(speed_cap, s) / speed[shortlist]))
+
+
+@kernel
+def _trapezoid_lengths(theta, sigma, sigma_1, start, out):
+    """
+    Fill ``out`` (N,) with ``start`` plus the arc length at ``theta`` (N,) by :func:`_cap_rate`.
+
+    The corrected trapezoid rule on ``sigma`` and ``sigma_1`` summed from the first
+    sample, with the operations (and order) of the NumPy formula ``start +
+    concatenate(([0], cumsum(0.5 step (sigma_i + sigma_i+1) - step**2 / 12 (sigma_1,i -
+    sigma_1,i+1))))``: the same lengths bit for bit, in one pass.
+    """
+    out[0] = start + 0.0
+    total = 0.0
+    for index in range(theta.size - 1):
+        step = theta[index] - theta[index + 1]
+        piece = (0.5 * step * (sigma[index] + sigma[index + 1])
+                 - step * step / 12.0 * (sigma_1[index] - sigma_1[index + 1]))
+        total = piece if index == 0 else total + piece
+        out[index + 1] = start + total
 
 
 def _curvature_state(arc, rate, theta):
@@ -457,7 +554,7 @@ def _curvature_state(arc, rate, theta):
 
 def _rule_speed(arc, rate, theta):
     """Return s' = K sigma**4 / (a b) at a scalar ``theta``, as the law's states on arrays did."""
-    return float((rate * arc.sigma(np.array([theta]))[0] ** 4 / (arc.a * arc.b))[0])
+    return float((rate * ellipse_speed(arc.a, arc.b, np.array([theta])) ** 4 / (arc.a * arc.b))[0])
 
 
 def _curvature_rates(arc, rate, theta):
@@ -515,7 +612,7 @@ def _curvature_motion(path, limits, r, speed_cap):
             v_t1 = _rule_speed(arc, rate, first_arc.theta_start)
         if path.segment_lengths[2] > 0.0:
             v_t2 = _rule_speed(arc, rate, last_arc.theta_end)
-    law = _Sequence(laws)
+    law = _CurvatureSequence(laws)
     return TimedMotion(path, 'curvature', law.duration, segments,
                        v_t1 ** 2 / arc.end_radius, v_t2 ** 2 / arc.end_radius,
                        int(nodes.size), law, node_period=r / rate)

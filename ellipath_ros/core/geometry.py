@@ -227,10 +227,21 @@ def ellipse_sigma(a, b, theta):
     theta = np.asarray(theta, dtype=float)
     spread = a * a - b * b
     sin_theta, cos_theta = np.sin(theta), np.cos(theta)
-    sigma = np.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
+    sigma = _sigma_of(a, b, sin_theta, cos_theta)
     sigma_1 = spread * sin_theta * cos_theta / sigma
     sigma_2 = (spread * (cos_theta ** 2 - sin_theta ** 2) - sigma_1 ** 2) / sigma
     return sigma, sigma_1, sigma_2
+
+
+def ellipse_speed(a, b, theta):
+    """Return sigma = |dP/dtheta| alone, as :func:`ellipse_sigma` computes it [m/rad]."""
+    theta = np.asarray(theta, dtype=float)
+    return _sigma_of(a, b, np.sin(theta), np.cos(theta))
+
+
+def _sigma_of(a, b, sin_theta, cos_theta):
+    """Return sigma from sin theta and cos theta (arrays)."""
+    return np.sqrt(a * a * sin_theta ** 2 + b * b * cos_theta ** 2)
 
 
 def radius_of_curvature_derivatives(a, b, theta):
@@ -311,14 +322,30 @@ def _offset_at(l_, span_1, span_2, t):
 @kernel
 def _ellipse_at(l_, h, k, t):
     """Return x, y, dx/dt, dy/dt of the ellipse at ``t`` (d2P/dt2 = -P, d3P/dt3 = -dP/dt)."""
-    cos_t, sin_t = math.cos(t), math.sin(t)
+    return _ellipse_from(l_, h, k, math.cos(t), math.sin(t))
+
+
+@kernel
+def _ellipse_from(l_, h, k, cos_t, sin_t):
+    """Return :func:`_ellipse_at` from the cosine and sine of t."""
     return l_ * cos_t, h * cos_t + k * sin_t, -l_ * sin_t, k * cos_t - h * sin_t
 
 
 @kernel
 def _bend_at(l_, h, k, span_1, span_2, t):
     """Return x, y and their first three derivatives by t of the bend at ``t``."""
-    x, y, x1, y1 = _ellipse_at(l_, h, k, t)
+    return _bend_from(l_, h, k, span_1, span_2, t, math.cos(t), math.sin(t))
+
+
+@kernel
+def _bend_from(l_, h, k, span_1, span_2, t, cos_t, sin_t):
+    """
+    Return :func:`_bend_at` at ``t`` from its cosine and sine.
+
+    On a grid shared by every curve (:func:`_dense_table`, :func:`_panel_table`) these are
+    computed once, by the same libm calls: the same values without their cost per curve.
+    """
+    x, y, x1, y1 = _ellipse_from(l_, h, k, cos_t, sin_t)
     delta, delta_1, delta_2, delta_3 = _offset_at(l_, span_1, span_2, t)
     return x + delta, y, x1 + delta_1, y1, delta_2 - x, -y, delta_3 - x1, -y1
 
@@ -326,7 +353,13 @@ def _bend_at(l_, h, k, span_1, span_2, t):
 @kernel
 def _speed_at(l_, h, k, span_1, span_2, t):
     """Return |dQ/dt| of the bend at ``t`` [m/rad]."""
-    _, _, x1, y1, _, _, _, _ = _bend_at(l_, h, k, span_1, span_2, t)
+    return _speed_from(l_, h, k, span_1, span_2, t, math.cos(t), math.sin(t))
+
+
+@kernel
+def _speed_from(l_, h, k, span_1, span_2, t, cos_t, sin_t):
+    """Return :func:`_speed_at` at ``t`` from its cosine and sine."""
+    _, _, x1, y1, _, _, _, _ = _bend_from(l_, h, k, span_1, span_2, t, cos_t, sin_t)
     return math.sqrt(x1 * x1 + y1 * y1)
 
 
@@ -395,12 +428,31 @@ def _curvature_rows(bend, t, kappa, rate):
 
 
 @kernel
-def _grid_rows(bend, t, kappa, rate, speed):
-    """Fill ``kappa``, ``rate`` and ``speed`` (N,) at ``t`` (N,): one evaluation of the bend."""
+def _grid_rows(bend, grid, kappa, rate, speed):
+    """
+    Fill ``kappa``, ``rate`` and ``speed`` (N,) at t (N,): one evaluation of the bend.
+
+    ``grid`` (3, N) holds t and its cosine and sine (:func:`_trig_table`).
+    """
     l_, h, k, span_1, span_2 = bend
-    for row in range(t.size):
-        _, _, x1, y1, x2, y2, x3, y3 = _bend_at(l_, h, k, span_1, span_2, t[row])
+    for row in range(grid.shape[1]):
+        _, _, x1, y1, x2, y2, x3, y3 = _bend_from(l_, h, k, span_1, span_2, grid[0, row],
+                                                  grid[1, row], grid[2, row])
         kappa[row], rate[row], speed[row] = _curvature_of(x1, y1, x2, y2, x3, y3)
+
+
+@kernel
+def _trig_rows(t, out):
+    """Fill ``out`` (3, N) with ``t`` (N,), its cosine and its sine (as the kernels take them)."""
+    for row in range(t.size):
+        out[0, row], out[1, row], out[2, row] = t[row], math.cos(t[row]), math.sin(t[row])
+
+
+def _trig_table(t):
+    """Return t (N,), its cosine and its sine as rows (3, N) (:func:`_trig_rows`)."""
+    table = np.empty((3, t.size))
+    _trig_rows(np.array(t, dtype=float), table)
+    return table
 
 
 @kernel
@@ -412,6 +464,40 @@ def _integral_at(l_, h, k, span_1, span_2, t_start, t_end, nodes, weights):
     for node in range(nodes.size):
         total += _speed_at(l_, h, k, span_1, span_2, middle + half * nodes[node]) * weights[node]
     return abs(half) * total
+
+
+@kernel
+def _panel_integral(l_, h, k, span_1, span_2, panels, panel, weights):
+    """
+    Return :func:`_integral_at` over panel ``panel`` of ``panels`` (:func:`_panel_nodes`).
+
+    Its nodes, their cosines and sines and its half width, as :func:`_integral_at` computes
+    them, come from the table.
+    """
+    total = 0.0
+    for node in range(weights.size):
+        total += _speed_from(l_, h, k, span_1, span_2, panels[panel, 0, node],
+                             panels[panel, 1, node], panels[panel, 2, node]) * weights[node]
+    return panels[panel, 3, 0] * total
+
+
+@kernel
+def _panel_nodes(panel_t, nodes, out):
+    """
+    Fill ``out`` (N - 1, 4, n) with the nodes of each panel of ``panel_t`` (N,).
+
+    Rows 0-2 of a panel: its Gauss-Legendre nodes t (``nodes``, (n,), as
+    :func:`_integral_at` places them), their cosine and sine; row 3: its half width |h|.
+    """
+    for panel in range(panel_t.size - 1):
+        t_start, t_end = panel_t[panel], panel_t[panel + 1]
+        half = 0.5 * (t_end - t_start)
+        middle = 0.5 * (t_end + t_start)
+        for node in range(nodes.size):
+            t = middle + half * nodes[node]
+            out[panel, 0, node], out[panel, 1, node], out[panel, 2, node] = (
+                t, math.cos(t), math.sin(t))
+            out[panel, 3, node] = abs(half)
 
 
 @kernel
@@ -429,28 +515,46 @@ def _s_from_t_rows(bend, panel_t, panel_s, t, nodes, weights, out):
 
 
 @kernel
-def _table_rows(bend, panel_t, nodes, weights, panel_s, quintics):
+def _table_rows(bend, panel_t, nodes, weights, grid, grid_panels, panel_s, quintics):
     """
     Fill the arc-length table at the panel bounds ``panel_t`` (N,), falling from pi to 0.
 
     ``panel_s`` gets the arc length from T1 (Gauss-Legendre on each panel); row i of
     ``quintics`` (N - 1, 7) the coefficients of t(s) on panel i in x = (s - s_i) / width
     (x**0 to x**5) and 1 / width: the quintic through t, dt/ds and d2t/ds2 at both ends,
-    with ds/dt = -sigma, so dt/ds = -1/sigma and d2t/ds2 = -sigma_t / sigma**3.
+    with ds/dt = -sigma, so dt/ds = -1/sigma and d2t/ds2 = -sigma_t / sigma**3. Bounds and
+    panels of the breakless grid (``grid``, (3, M): :func:`_trig_table`; its panels'
+    nodes ``grid_panels``, :func:`_panel_nodes`) take their cosines and sines from there.
     """
     l_, h, k, span_1, span_2 = bend
     count = panel_t.size
     dt_ds, d2t_ds2 = np.empty(count), np.empty(count)
+    # Each bound's index on the grid, or -1 (a break between grid points).
+    on_grid = np.full(count, -1, np.int64)
+    column = 0
     for row in range(count):
-        _, _, x1, y1, x2, y2, _, _ = _bend_at(l_, h, k, span_1, span_2, panel_t[row])
+        while column < grid.shape[1] and grid[0, column] > panel_t[row]:
+            column += 1
+        if column < grid.shape[1] and grid[0, column] == panel_t[row]:
+            on_grid[row] = column
+            values = _bend_from(l_, h, k, span_1, span_2, panel_t[row], grid[1, column],
+                                grid[2, column])
+        else:
+            values = _bend_at(l_, h, k, span_1, span_2, panel_t[row])
+        _, _, x1, y1, x2, y2, _, _ = values
         sigma = math.sqrt(x1 * x1 + y1 * y1)
         sigma_t = (x1 * x2 + y1 * y2) / sigma
         dt_ds[row] = -1.0 / sigma
         d2t_ds2[row] = -sigma_t / (sigma * sigma * sigma)
     panel_s[0] = 0.0
     for row in range(count - 1):
-        panel_s[row + 1] = panel_s[row] + _integral_at(
-            l_, h, k, span_1, span_2, panel_t[row], panel_t[row + 1], nodes, weights)
+        column = on_grid[row]
+        if column >= 0 and on_grid[row + 1] == column + 1:
+            length = _panel_integral(l_, h, k, span_1, span_2, grid_panels, column, weights)
+        else:
+            length = _integral_at(l_, h, k, span_1, span_2, panel_t[row], panel_t[row + 1],
+                                  nodes, weights)
+        panel_s[row + 1] = panel_s[row] + length
     for panel in range(count - 1):
         after = panel + 1
         width = max(panel_s[after] - panel_s[panel], 1e-300)
@@ -496,8 +600,8 @@ class _ParametricArc:
                 np.unique(np.concatenate((panel_t, self._breaks())))[::-1])
         panel_s = np.empty(panel_t.size)
         quintics = np.empty((panel_t.size - 1, 7))
-        _table_rows(self._bend, panel_t, GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS, panel_s,
-                    quintics)
+        _table_rows(self._bend, panel_t, GAUSS_LEGENDRE_NODES, GAUSS_LEGENDRE_WEIGHTS,
+                    *_panel_table(), panel_s, quintics)
         return panel_t, panel_s, quintics
 
     def _rows(self, rows, function, t):
@@ -591,12 +695,12 @@ class _ParametricArc:
 
     def _curvature_grid(self, samples):
         """Return (t, kappa, dkappa/ds, |dQ/dt|) on ``samples`` even steps of t, read-only."""
-        # A copy of the shared grid: the kernels take writable arrays (one compiled form).
-        t = _dense_grid().copy() if samples == _DENSE_SAMPLES else np.linspace(
-            math.pi, 0.0, samples)
-        kappa, rate, speed = np.empty(t.size), np.empty(t.size), np.empty(t.size)
-        _grid_rows(self._bend, t, kappa, rate, speed)
-        grid = t, kappa, rate, speed
+        # A copy of the shared table: the kernels take writable arrays (one compiled form).
+        table = _dense_table().copy() if samples == _DENSE_SAMPLES else _trig_table(
+            np.linspace(math.pi, 0.0, samples))
+        kappa, rate, speed = (np.empty(samples) for _ in range(3))
+        _grid_rows(self._bend, table, kappa, rate, speed)
+        grid = table[0], kappa, rate, speed
         for values in grid:
             values.setflags(write=False)
         return grid
@@ -677,7 +781,7 @@ class EllipticArc(_ParametricArc):
 
     def radius_of_curvature(self, theta):
         """Return rho(theta) = sigma**3 / (a b), the paper's eq. (34), shape of ``theta`` [m]."""
-        return ellipse_sigma(self.a, self.b, theta)[0] ** 3 / (self.a * self.b)
+        return ellipse_speed(self.a, self.b, theta) ** 3 / (self.a * self.b)
 
     def sigma(self, theta):
         """Return sigma and its first two derivatives by theta (see :func:`ellipse_sigma`)."""
@@ -969,6 +1073,29 @@ def _dense_grid():
     t = np.linspace(math.pi, 0.0, _DENSE_SAMPLES)
     t.setflags(write=False)
     return t
+
+
+@functools.cache
+def _dense_table():
+    """Return :func:`_trig_table` of :func:`_dense_grid`, computed once (read-only)."""
+    table = _trig_table(_dense_grid())
+    table.setflags(write=False)
+    return table
+
+
+@functools.cache
+def _panel_table():
+    """
+    Return the breakless panel grid's :func:`_trig_table` and :func:`_panel_nodes` (read-only).
+
+    Every curve's arc-length table has these bounds and panels, and only its breaks besides.
+    """
+    grid = _trig_table(_panel_grid())
+    panels = np.empty((_N_PANELS, 4, GAUSS_LEGENDRE_NODES.size))
+    _panel_nodes(grid[0].copy(), GAUSS_LEGENDRE_NODES, panels)
+    for values in (grid, panels):
+        values.setflags(write=False)
+    return grid, panels
 
 
 @kernel

@@ -96,15 +96,19 @@ class _JerkPieces:
 @kernel
 def _piece_states(times, s0, v0, a0, jerk, t, state):
     """Fill ``state`` (4, N) with :meth:`_JerkPieces.state` at ``t`` (N,)."""
-    last = jerk.size - 1
     for row in range(t.size):
-        index = min(max(np.searchsorted(times, t[row], side='right') - 1, 0), last)
-        x = t[row] - times[index]
-        j, a, v = jerk[index], a0[index], v0[index]
-        state[0, row] = s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0))
-        state[1, row] = v + x * (a + x * j / 2.0)
-        state[2, row] = a + x * j
-        state[3, row] = j
+        state[0, row], state[1, row], state[2, row], state[3, row] = _piece_state(
+            times, s0, v0, a0, jerk, t[row])
+
+
+@kernel(inline=True)
+def _piece_state(times, s0, v0, a0, jerk, t):
+    """Return (s, v, a, j) of :class:`_JerkPieces`' arrays at one time ``t``."""
+    index = min(max(np.searchsorted(times, t, side='right') - 1, 0), jerk.size - 1)
+    x = t - times[index]
+    j, a, v = jerk[index], a0[index], v0[index]
+    return (s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0),
+            a + x * j, j)
 
 
 class _PieceList:
@@ -482,20 +486,12 @@ class TimedMotion:
             jerk = self.path_state(np.concatenate((np.maximum(times - epsilon, 0.0),
                                                    np.minimum(times + epsilon, self.duration))))[3]
             sizes = np.abs(jerk[times.size:] - jerk[:times.size])
-        if marks.size and times.size:
-            apart = _farther_than(times, marks, epsilon)
-            times, sizes = times[apart], sizes[apart]
+        jerk = np.zeros((0, 3))
         if marks.size:
             jerk = self.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
                                                  np.minimum(marks + epsilon, self.duration))))[3]
-            times = np.concatenate((times, marks))
-            sizes = np.concatenate((sizes, np.linalg.norm(jerk[marks.size:] - jerk[:marks.size],
-                                                          axis=1)))
-        order = np.argsort(times, kind='stable')
-        times, sizes = times[order], sizes[order]
-        unique = np.concatenate(([True], np.diff(times) > 0.0))
-        inside = unique & (times > 0.0) & (times < self.duration)
-        return times[inside], sizes[inside]
+        return _merged_steps(np.ascontiguousarray(times), np.ascontiguousarray(sizes), marks,
+                             jerk, epsilon, float(self.duration))
 
     def _mark_times(self):
         """Return the times [s] at which the path's curvature rate steps (T1, T2, G2 ends)."""
@@ -618,6 +614,13 @@ def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
     """Fill ``states`` (4, N, 3) from the path's rows (3, N) and its law's v, a, j (N,)."""
     for row in range(v.size):
         speed, accel, jerk = v[row], a[row], j[row]
+        if (rate[0, row] == 0.0 and rate[1, row] == 0.0 and rate[2, row] == 0.0
+                and abs(speed) < 1e100):
+            # No curvature rate (a vertical line): the cube only signs a zero product, and
+            # x * x * x has pow's sign and (below 1e100) its finiteness, without pow's cost.
+            cube = speed * speed * speed
+        else:
+            cube = speed ** 3.0
         for axis in range(3):
             states[0, row, axis] = position[axis, row]
             states[1, row, axis] = speed * tangent[axis, row]
@@ -625,7 +628,7 @@ def _cartesian_rows(position, tangent, curvature, rate, v, a, j, states):
                                     + (speed * speed) * curvature[axis, row])
             states[3, row, axis] = (jerk * tangent[axis, row]
                                     + (3.0 * speed * accel) * curvature[axis, row]
-                                    + (speed ** 3.0) * rate[axis, row])
+                                    + cube * rate[axis, row])
 
 
 @kernel
@@ -776,6 +779,43 @@ def _smooth_bounds(motion):
         apart = _farther_than(marks, bounds, _SAME_BOUND * motion.duration)
         bounds = np.sort(np.concatenate((bounds, marks[apart])))
     return bounds
+
+
+@kernel
+def _merged_steps(times, sizes, marks, jerk, epsilon, duration):
+    """
+    Return :meth:`TimedMotion.jerk_steps` from the law's steps and the jerk at the marks.
+
+    ``times`` and ``sizes`` (K,) are the law's steps, ``marks`` (M,) the path's, ``jerk``
+    (2 M, 3) the jerk just before and just after each mark. Steps within ``epsilon`` of a
+    mark are counted in the mark's (the norm of the difference); sorted (stable), the first
+    of equal times kept, only those inside (0, ``duration``). The operations of the NumPy
+    formulas these were first written in (the norm adds the squares in order), in one pass.
+    """
+    apart = _farther_than(times, marks, epsilon)
+    kept = np.flatnonzero(apart)
+    count = kept.size + marks.size
+    all_times, all_sizes = np.empty(count), np.empty(count)
+    for row in range(kept.size):
+        all_times[row], all_sizes[row] = times[kept[row]], sizes[kept[row]]
+    for mark in range(marks.size):
+        row = kept.size + mark
+        all_times[row] = marks[mark]
+        x = jerk[marks.size + mark, 0] - jerk[mark, 0]
+        y = jerk[marks.size + mark, 1] - jerk[mark, 1]
+        z = jerk[marks.size + mark, 2] - jerk[mark, 2]
+        all_sizes[row] = math.sqrt(x * x + y * y + z * z)
+    order = np.argsort(all_times, kind='mergesort')
+    out_times, out_sizes = np.empty(count), np.empty(count)
+    found = 0
+    for rank in range(count):
+        here = all_times[order[rank]]
+        if rank > 0 and not here - all_times[order[rank - 1]] > 0.0:
+            continue
+        if here > 0.0 and here < duration:
+            out_times[found], out_sizes[found] = here, all_sizes[order[rank]]
+            found += 1
+    return out_times[:found], out_sizes[:found]
 
 
 @kernel
