@@ -444,7 +444,7 @@ def joint_accelerations(points, q, velocities, accelerations, qdot, geometry, *,
 
 def _rates(points, q, velocities, accelerations, qdot, geometry, name):
     """
-    Return (q_dot, q_ddot) of :func:`_rate_row` for every row, raising at a singularity.
+    Return (q_dot, q_ddot) of :func:`_rate_point` for every row, raising at a singularity.
 
     ``qdot`` given (N, 3): the accelerations are computed with it, and it is returned.
     """
@@ -535,7 +535,7 @@ def _joint_failure(points, row, status, arm, value, geometry, name):
     """
     Return the error naming row ``row`` of ``points`` that inverse kinematics cannot serve.
 
-    The one naming of the kernels' failures (:func:`_ik_row`, :func:`_rate_row`): ``status``
+    The one naming of the kernels' failures (:func:`_ik_point`, :func:`_rate_point`): ``status``
     is their code, ``arm`` the arm that fails and ``value`` its joint angle (``_IK_LIMIT``)
     or ``s_i . b_i`` (``_IK_SINGULAR``).
     """
@@ -815,19 +815,58 @@ def _solve(rhs0, rhs1, rhs2, columns, inverse_det):
             (rhs0 * first[2] + rhs1 * second[2] + rhs2 * third[2]) * inverse_det)
 
 
-# Status codes of inverse kinematics of a row (:func:`_ik_row`, :func:`_rate_row`), in the
-# order the errors are reported.
+# Status codes of inverse kinematics of a row (:func:`_ik_point`, :func:`_rate_point`), in
+# the order the errors are reported.
 _IK_OK, _IK_ABOVE, _IK_OUTSIDE, _IK_LIMIT, _IK_SINGULAR = range(5)
 
 
-@kernel
-def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q,
-            trig):
-    """
-    Elbow-out IK of ``points[row]`` into ``q[row]``; return (status, failing arm).
+# The row kernels below take each point's coordinates and return its results as plain floats
+# and 3-tuples (one entry per arm): a compiled call taking arrays counts their references up
+# and down (atomic NRT_incref/decref), which cost a fifth of _joint_rows' time when each row
+# was a call with ten arrays. The arm directions, radial (x, y) and tangential (x, y), come
+# as 3-tuples too.
+@kernel(inline=True)
+def _triple(values):
+    """Return the entries of ``values`` (3,) as a 3-tuple."""
+    return values[0], values[1], values[2]
 
-    ``trig`` (2, 3) receives cos q and sin q of every arm, from the same quantities without
-    a trigonometric call: with ``rho^2 = u^2 + z^2`` and ``sqrt(D^2 + G^2) = 2 L1 rho``,
+
+@kernel(inline=True)
+def _row(values, row):
+    """Return row ``row`` of ``values`` (N, 3) as a 3-tuple."""
+    return values[row, 0], values[row, 1], values[row, 2]
+
+
+@kernel(inline=True)
+def _write_row(values, row, entries):
+    """Write the 3-tuple ``entries`` into row ``row`` of ``values`` (N, 3)."""
+    values[row, 0], values[row, 1], values[row, 2] = entries
+
+
+@kernel(inline=True)
+def _ik_arm(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
+    """Return (in the arm's sphere, cos q, sin q, q) of one arm of :func:`_ik_point`."""
+    u = x * rx + y * ry + -offset
+    w = x * tx + y * ty
+    g = u * u + w * w + z * z + upper_sq - fore_sq
+    discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
+    if discriminant < 0.0:
+        return False, 0.0, 0.0, 0.0
+    root = math.sqrt(discriminant)
+    scale = 1.0 / (2.0 * upper * (u * u + z * z))
+    cos_q = (u * g - z * root) * scale
+    sin_q = -(z * g + u * root) * scale
+    return True, cos_q, sin_q, math.atan2(sin_q, cos_q)
+
+
+@kernel(inline=True)
+def _ik_point(x, y, z, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max):
+    """
+    Elbow-out IK of the point (x, y, z); return (status, failing arm, q, cos q, sin q).
+
+    ``q``, ``cos q`` and ``sin q`` are 3-tuples (arm 0, 1, 2; zeros from a failing arm on),
+    cos q and sin q from the same quantities as q, without a trigonometric call: with
+    ``rho^2 = u^2 + z^2`` and ``sqrt(D^2 + G^2) = 2 L1 rho``,
     ``cos q = (u G - z sqrt(D)) / (2 L1 rho^2)`` and
     ``sin q = -(z G + u sqrt(D)) / (2 L1 rho^2)``.
 
@@ -842,107 +881,128 @@ def _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min, join
     from the actuator axis to the effector joint). Checked in the order the errors are
     named: above the base (or not finite), outside an arm's sphere, beyond a joint limit.
     """
-    x, y, z = points[row, 0], points[row, 1], points[row, 2]
+    zero = (0.0, 0.0, 0.0)
     if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
-        return _IK_ABOVE, 0
+        return _IK_ABOVE, 0, zero, zero, zero
     fore_sq = forearm * forearm
     upper_sq = upper * upper
+    inside0, cos0, sin0, q0 = _ik_arm(x, y, z, rx[0], ry[0], tx[0], ty[0], offset, upper,
+                                      fore_sq, upper_sq)
+    if not inside0:
+        return _IK_OUTSIDE, 0, zero, zero, zero
+    inside1, cos1, sin1, q1 = _ik_arm(x, y, z, rx[1], ry[1], tx[1], ty[1], offset, upper,
+                                      fore_sq, upper_sq)
+    if not inside1:
+        return _IK_OUTSIDE, 1, zero, zero, zero
+    inside2, cos2, sin2, q2 = _ik_arm(x, y, z, rx[2], ry[2], tx[2], ty[2], offset, upper,
+                                      fore_sq, upper_sq)
+    if not inside2:
+        return _IK_OUTSIDE, 2, zero, zero, zero
+    q, cos_q, sin_q = (q0, q1, q2), (cos0, cos1, cos2), (sin0, sin1, sin2)
     for arm in range(3):
-        u = x * rx[arm] + y * ry[arm] + -offset
-        w = x * tx[arm] + y * ty[arm]
-        g = u * u + w * w + z * z + upper_sq - fore_sq
-        discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
-        if discriminant < 0.0:
-            return _IK_OUTSIDE, arm
-        root = math.sqrt(discriminant)
-        scale = 1.0 / (2.0 * upper * (u * u + z * z))
-        cos_q = (u * g - z * root) * scale
-        sin_q = -(z * g + u * root) * scale
-        trig[0, arm], trig[1, arm] = cos_q, sin_q
-        q[row, arm] = math.atan2(sin_q, cos_q)
-    for arm in range(3):
-        if q[row, arm] < joint_min or q[row, arm] > joint_max:
-            return _IK_LIMIT, arm
-    return _IK_OK, 0
+        if q[arm] < joint_min or q[arm] > joint_max:
+            return _IK_LIMIT, arm, q, cos_q, sin_q
+    return _IK_OK, 0, q, cos_q, sin_q
 
 
 @kernel
 def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q, status,
              arms):
-    """:func:`_ik_row` of every row: ``status`` and ``arms`` (N,) receive its result."""
-    trig = np.empty((2, 3))
+    """:func:`_ik_point` of every row into ``q``: ``status`` and ``arms`` (N,) its result."""
+    radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
     for row in range(points.shape[0]):
-        status[row], arms[row] = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm,
-                                         joint_min, joint_max, q, trig)
+        status[row], arms[row], angles, _, _ = _ik_point(
+            points[row, 0], points[row, 1], points[row, 2], radial_x, radial_y, tangent_x,
+            tangent_y, offset, upper, forearm, joint_min, joint_max)
+        _write_row(q, row, angles)
 
 
-@kernel
-def _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper, singular_diagonal,
-              trig, qdot, qddot, given_qdot):
+@kernel(inline=True)
+def _rate_arm(point, velocity, acceleration, cos_q, sin_q, rx, ry, offset, upper,
+              singular_diagonal, given_rate, given):
     """
-    Joint rates of row ``row`` (analytic Jacobian); return (singular arm or -1, its s.b).
+    Return (regular, s.b, q_dot, q_ddot) of one arm of :func:`_rate_point`.
+
+    ``q_dot`` is ``given_rate`` if ``given``, else computed; ``regular`` is False (and the
+    rates 0) where ``|s.b|`` is below ``singular_diagonal``.
+    """
+    x, y, z = point
+    reach = -offset - upper * cos_q
+    upper_sin, upper_cos = upper * sin_q, upper * cos_q
+    sx, sy, sz = x + reach * rx, y + reach * ry, z + upper_sin
+    bx, by, bz = -upper_sin * rx, -upper_sin * ry, -upper_cos
+    diagonal = sx * bx + sy * by + sz * bz
+    if abs(diagonal) < singular_diagonal:
+        return False, diagonal, 0.0, 0.0
+    rate = given_rate if given else (sx * velocity[0] + sy * velocity[1]
+                                     + sz * velocity[2]) / diagonal
+    rate_x = velocity[0] - bx * rate
+    rate_y = velocity[1] - by * rate
+    rate_z = velocity[2] - bz * rate
+    numerator = (sx * acceleration[0] + sy * acceleration[1] + sz * acceleration[2]
+                 + (rate_x * rate_x + rate_y * rate_y + rate_z * rate_z)
+                 - (sx * (-upper_cos * rx) + sy * (-upper_cos * ry) + sz * upper_sin)
+                 * rate * rate)
+    return True, diagonal, rate, numerator / diagonal
+
+
+@kernel(inline=True)
+def _rate_point(point, velocity, acceleration, cos_q, sin_q, rx, ry, offset, upper,
+                singular_diagonal, given_rates, given):
+    """
+    Joint rates of one pose (analytic Jacobian); return (singular arm or -1, its s.b, rates).
 
     Differentiating ``|s_i|^2 = L2^2`` with ``s_i = C_i - B_i`` the forearm vector gives
     the standard Delta form ``A p_dot = B q_dot`` with rows ``A_i = s_i^T`` and
     ``B = diag(s_i . b_i)``, ``b_i = dB_i/dq_i``; once more, with ``c_i = d^2B_i/dq_i^2``,
     ``q_ddot_i = (s_i . p_ddot + |s_dot_i|^2 - (s_i . c_i) q_dot_i^2) / (s_i . b_i)``,
-    ``s_dot_i = p_dot - b_i q_dot_i``. ``trig`` (2, 3) holds cos q and sin q of the
-    arms; ``q_dot`` is read from ``qdot[row]`` if ``given_qdot``, else written there.
+    ``s_dot_i = p_dot - b_i q_dot_i``. ``point``, ``velocity``, ``acceleration``, ``cos_q``,
+    ``sin_q`` and the radial directions ``rx``, ``ry`` are 3-tuples; so are the rates
+    (q_dot, q_ddot). ``q_dot`` is ``given_rates`` if ``given``, else computed. At a
+    singularity (an arm's ``|s_i . b_i|`` below ``singular_diagonal``) the arm with the
+    smallest ``|s_i . b_i|`` is returned.
     """
-    x, y, z = points[row, 0], points[row, 1], points[row, 2]
-    for arm in range(3):
-        cos_q, sin_q = trig[0, arm], trig[1, arm]
-        reach = -offset - upper * cos_q
-        upper_sin, upper_cos = upper * sin_q, upper * cos_q
-        sx, sy, sz = x + reach * rx[arm], y + reach * ry[arm], z + upper_sin
-        bx, by, bz = -upper_sin * rx[arm], -upper_sin * ry[arm], -upper_cos
-        diagonal = sx * bx + sy * by + sz * bz
-        if abs(diagonal) < singular_diagonal:
-            return _smallest_diagonal(points, row, rx, ry, offset, upper, trig)
-        if not given_qdot:
-            qdot[row, arm] = (sx * velocities[row, 0] + sy * velocities[row, 1]
-                              + sz * velocities[row, 2]) / diagonal
-        rate = qdot[row, arm]
-        rate_x = velocities[row, 0] - bx * rate
-        rate_y = velocities[row, 1] - by * rate
-        rate_z = velocities[row, 2] - bz * rate
-        numerator = (sx * accelerations[row, 0] + sy * accelerations[row, 1]
-                     + sz * accelerations[row, 2]
-                     + (rate_x * rate_x + rate_y * rate_y + rate_z * rate_z)
-                     - (sx * (-upper_cos * rx[arm]) + sy * (-upper_cos * ry[arm])
-                        + sz * upper_sin) * rate * rate)
-        qddot[row, arm] = numerator / diagonal
-    return -1, 0.0
+    regular0, diagonal0, rate0, accel0 = _rate_arm(
+        point, velocity, acceleration, cos_q[0], sin_q[0], rx[0], ry[0], offset, upper,
+        singular_diagonal, given_rates[0], given)
+    regular1, diagonal1, rate1, accel1 = _rate_arm(
+        point, velocity, acceleration, cos_q[1], sin_q[1], rx[1], ry[1], offset, upper,
+        singular_diagonal, given_rates[1], given)
+    regular2, diagonal2, rate2, accel2 = _rate_arm(
+        point, velocity, acceleration, cos_q[2], sin_q[2], rx[2], ry[2], offset, upper,
+        singular_diagonal, given_rates[2], given)
+    rates = ((rate0, rate1, rate2), (accel0, accel1, accel2))
+    if regular0 and regular1 and regular2:
+        return -1, 0.0, rates
+    smallest, smallest_arm = np.inf, 0
+    for arm, diagonal in enumerate((diagonal0, diagonal1, diagonal2)):
+        if abs(diagonal) < abs(smallest):
+            smallest, smallest_arm = diagonal, arm
+    return smallest_arm, smallest, rates
 
 
 @kernel
 def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, singular_diagonal,
                qdot, qddot, given_qdot):
-    """Run :func:`_rate_row` on every row; return the first singular (row, arm, s.b) or row -1."""
-    trig = np.empty((2, 3))
+    """
+    Run :func:`_rate_point` on every row; return the first singular (row, arm, s.b) or row -1.
+
+    ``q_dot`` is read from ``qdot`` if ``given_qdot``, else written there.
+    """
+    radial_x, radial_y = _triple(rx), _triple(ry)
     for row in range(points.shape[0]):
-        for arm in range(3):
-            trig[0, arm], trig[1, arm] = math.cos(q[row, arm]), math.sin(q[row, arm])
-        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset, upper,
-                                  singular_diagonal, trig, qdot, qddot, given_qdot)
+        cos0, sin0 = math.cos(q[row, 0]), math.sin(q[row, 0])
+        cos1, sin1 = math.cos(q[row, 1]), math.sin(q[row, 1])
+        cos2, sin2 = math.cos(q[row, 2]), math.sin(q[row, 2])
+        cos_q, sin_q = (cos0, cos1, cos2), (sin0, sin1, sin2)
+        arm, diagonal, rates = _rate_point(
+            _row(points, row), _row(velocities, row), _row(accelerations, row), cos_q, sin_q,
+            radial_x, radial_y, offset, upper, singular_diagonal, _row(qdot, row), given_qdot)
         if arm >= 0:
             return row, arm, diagonal
+        _write_row(qdot, row, rates[0])
+        _write_row(qddot, row, rates[1])
     return -1, 0, 0.0
-
-
-@kernel
-def _smallest_diagonal(points, row, rx, ry, offset, upper, trig):
-    """Return the arm of row ``row`` with the smallest ``|s_i . b_i|``, and that value."""
-    smallest, smallest_arm = np.inf, 0
-    for arm in range(3):
-        cos_q, sin_q = trig[0, arm], trig[1, arm]
-        reach = -offset - upper * cos_q
-        diagonal = ((points[row, 0] + reach * rx[arm]) * (-upper * sin_q * rx[arm])
-                    + (points[row, 1] + reach * ry[arm]) * (-upper * sin_q * ry[arm])
-                    + (points[row, 2] + upper * sin_q) * (-upper * cos_q))
-        if abs(diagonal) < abs(smallest):
-            smallest, smallest_arm = diagonal, arm
-    return smallest_arm, smallest
 
 
 @kernel
@@ -955,14 +1015,20 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
     singularity) and returns (row, status, arm, value) for :func:`_joint_failure`;
     row -1 when every row succeeds.
     """
-    trig = np.empty((2, 3))
+    radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
     for row in range(points.shape[0]):
-        status, arm = _ik_row(points, row, rx, ry, tx, ty, offset, upper, forearm, joint_min,
-                              joint_max, q, trig)
+        point = _row(points, row)
+        status, arm, angles, cos_q, sin_q = _ik_point(
+            point[0], point[1], point[2], radial_x, radial_y, tangent_x, tangent_y, offset,
+            upper, forearm, joint_min, joint_max)
         if status != _IK_OK:
-            return row, status, arm, q[row, arm]
-        arm, diagonal = _rate_row(points, velocities, accelerations, row, rx, ry, offset,
-                                  upper, singular_diagonal, trig, qdot, qddot, False)
+            return row, status, arm, angles[arm]
+        _write_row(q, row, angles)
+        arm, diagonal, rates = _rate_point(
+            point, _row(velocities, row), _row(accelerations, row), cos_q, sin_q, radial_x,
+            radial_y, offset, upper, singular_diagonal, (0.0, 0.0, 0.0), False)
         if arm >= 0:
             return row, _IK_SINGULAR, arm, diagonal
+        _write_row(qdot, row, rates[0])
+        _write_row(qddot, row, rates[1])
     return -1, _IK_OK, 0, 0.0
