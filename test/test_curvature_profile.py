@@ -212,3 +212,22 @@ def test_sequence_states_in_one_pass_equal_each_laws_bit_for_bit():
             found = sequence.state(t)
             expected = motion_module._Sequence.state(sequence, t)
             assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))
+
+
+def test_sequence_newton_steps_in_one_pass_equal_the_array_steps_bit_for_bit():
+    config = dataclasses.replace(PlannerConfig(), profile='curvature', join='paper')
+    for pick, place in random_pairs(8, seed=13):
+        path = plan_path(pick, place, config.pick_clearance, config.place_clearance,
+                         config.arc, config.join, config.join_tolerance)
+        sequence = time_motion(path, config.limits, profile='curvature', r=config.curvature_r,
+                               speed_cap=_check_reach_and_speed_cap(path, config)).law
+        lengths = np.array(path.segment_ends[1:3])
+        for factor in (1.0, 1.37):
+            duration = sequence.duration * factor
+            # A first guess inside the motion, and one with a time beyond it.
+            for guess in (np.array([0.3, 0.7]) * duration, np.array([-0.01, 1.2]) * duration):
+                found = sequence.newton_times(lengths, guess, factor, duration)
+                expected = motion_module._Sequence.newton_times(sequence, lengths, guess,
+                                                                factor, duration)
+                assert np.array_equal(found, expected)
+                assert np.array_equal(np.signbit(found), np.signbit(expected))

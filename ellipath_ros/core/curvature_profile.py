@@ -356,6 +356,13 @@ class _CurvatureSequence(_Sequence):
         _sequence_rows(t, self._starts, *self._arrays, rows)
         return tuple(rows)
 
+    def newton_times(self, lengths, t, factor, duration):
+        """Return :meth:`_Sequence.newton_times`, its steps in one compiled pass."""
+        t = np.array(t, dtype=float)
+        _newton_rows(np.ascontiguousarray(lengths, dtype=float), t, factor, duration,
+                     self._starts, *self._arrays)
+        return t
+
 
 @kernel
 def _sequence_rows(t, starts, piece_times, piece_rows, first_times, first_pieces, arc_law,
@@ -371,22 +378,71 @@ def _sequence_rows(t, starts, piece_times, piece_rows, first_times, first_pieces
     Each is evaluated at the time from its start, by its own formulas.
     """
     factors = _path_factors(a, b, rate)
-    last = starts.size - 2
     panel = 0
     for index in range(t.size):
-        law = min(max(np.searchsorted(starts, t[index], side='right') - 1, 0), last)
-        x = t[index] - starts[law]
-        if law == arc_law:
-            _, s, speed, accel, jerk, panel = _law_state(x, arc_times, arc_panels, a, b,
-                                                         factors, panel)
-        else:
-            first, end = first_pieces[law], first_pieces[law + 1]
-            s, speed, accel, jerk = _piece_state(
-                piece_times[first_times[law]:first_times[law + 1]], piece_rows[0, first:end],
-                piece_rows[1, first:end], piece_rows[2, first:end], piece_rows[3, first:end],
-                x)
-        rows[0, index], rows[1, index], rows[2, index], rows[3, index] = (s, speed, accel,
-                                                                          jerk)
+        rows[0, index], rows[1, index], rows[2, index], rows[3, index], panel = (
+            _sequence_state(t[index], starts, piece_times, piece_rows, first_times,
+                            first_pieces, arc_law, arc_times, arc_panels, a, b, factors, panel))
+
+
+@kernel(inline=True)
+def _sequence_state(t, starts, piece_times, piece_rows, first_times, first_pieces, arc_law,
+                    arc_times, arc_panels, a, b, factors, panel):
+    """
+    Return s, s', s'', s''' of the sequence at one time ``t``, and the arc law's panel.
+
+    The arguments are :func:`_sequence_rows`', ``factors`` :func:`_path_factors`; the arc
+    law's search for the panel starts from ``panel``.
+    """
+    law = min(max(np.searchsorted(starts, t, side='right') - 1, 0), starts.size - 2)
+    x = t - starts[law]
+    if law == arc_law:
+        _, s, speed, accel, jerk, panel = _law_state(x, arc_times, arc_panels, a, b, factors,
+                                                     panel)
+        return s, speed, accel, jerk, panel
+    first, end = first_pieces[law], first_pieces[law + 1]
+    s, speed, accel, jerk = _piece_state(
+        piece_times[first_times[law]:first_times[law + 1]], piece_rows[0, first:end],
+        piece_rows[1, first:end], piece_rows[2, first:end], piece_rows[3, first:end], x)
+    return s, speed, accel, jerk, panel
+
+
+@kernel
+def _newton_rows(lengths, t, factor, duration, starts, piece_times, piece_rows, first_times,
+                 first_pieces, arc_law, arc_times, arc_panels, a, b, rate):
+    """
+    Refine ``t`` (N,) in place: :meth:`_Sequence.newton_times` towards ``lengths`` (N,).
+
+    The sequence is :func:`_sequence_rows`' arrays, slowed down by ``factor``, as
+    :meth:`~ellipath_ros.core.motion.TimedMotion.path_state` reads it: all times clipped to
+    [0, ``duration``] when one is outside, divided by ``factor``, s' divided by ``factor``
+    unless it is 1; NumPy's clip (the larger of the value and 0, then the smaller of that
+    and the duration) on each step.
+    """
+    factors = _path_factors(a, b, rate)
+    panel = 0
+    for _ in range(3):
+        outside = False
+        for index in range(t.size):
+            outside = outside or t[index] < 0.0 or t[index] > duration
+        for index in range(t.size):
+            now = t[index]
+            if outside:
+                now = _clipped(now, duration)
+            s, speed, _, _, panel = _sequence_state(
+                now / factor, starts, piece_times, piece_rows, first_times, first_pieces,
+                arc_law, arc_times, arc_panels, a, b, factors, panel)
+            if factor != 1.0:
+                speed = speed / factor
+            if speed > 1e-9:
+                t[index] = _clipped(t[index] - (s - lengths[index]) / speed, duration)
+
+
+@kernel(inline=True)
+def _clipped(value, high):
+    """Return ``np.clip(value, 0.0, high)`` of a float as NumPy computes it."""
+    value = value if value > 0.0 else 0.0
+    return value if value < high else high
 
 
 def curvature_nodes(arc, r=0.77):

@@ -206,6 +206,26 @@ class _Sequence:
                  for start, law in zip(starts, self.laws)]
         return np.sort(np.concatenate(times + [starts]))
 
+    def newton_times(self, lengths, t, factor, duration):
+        """
+        Return the times ``t`` (N,) after three Newton steps towards s(t) = ``lengths`` (N,).
+
+        The sequence is read slowed down by ``factor`` over ``duration`` [s], as
+        :meth:`TimedMotion.path_state` reads it; each step is kept within the duration, and
+        a time where s' <= 1e-9 stays.
+        """
+        for _ in range(3):
+            if np.any(t < 0.0) or np.any(t > duration):
+                s, v, _, _ = self.state(np.clip(t, 0.0, duration) / factor)
+            else:
+                s, v, _, _ = self.state(t / factor)
+            if factor != 1.0:
+                v = v / factor
+            moving = v > 1e-9
+            t = np.where(moving, np.clip(t - (s - lengths) / np.where(moving, v, 1.0), 0.0,
+                                         duration), t)
+        return t
+
     def state(self, t):
         """
         Return (s, v, a, j) at times ``t`` (N,): each time's law at its time from that law's start.
@@ -523,12 +543,7 @@ class TimedMotion:
         # interpolation stays).
         bound_times, bound_lengths = law.bounds()
         t = np.interp(marks, bound_lengths, bound_times * self.time_scale)
-        for _ in range(3):
-            s, v, _, _ = self.path_state(t)
-            moving = v > 1e-9
-            t = np.where(moving, np.clip(t - (s - marks) / np.where(moving, v, 1.0), 0.0,
-                                         self.duration), t)
-        return t
+        return law.newton_times(marks, t, self.time_scale, self.duration)
 
     def scaled(self, factor):
         """
