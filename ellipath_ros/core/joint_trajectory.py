@@ -39,7 +39,7 @@ from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import _ASSEMBLED
-from ellipath_ros.core.kinematics import _forward_row
+from ellipath_ros.core.kinematics import _forward_point
 from ellipath_ros.core.kinematics import _kernel_geometry
 from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_motion
@@ -1352,10 +1352,10 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
     probe = count // 2 if limit < np.inf else -1
     first_visit = -1 if probe >= 0 else 0
     c = np.empty((6, 3))
-    reached = np.empty((1, 3))
     expected = np.empty((1, 3))
     errors = np.empty(start.size)
-    table_times = table[0]
+    # The table's arrays taken out of their tuple once, not at every check point.
+    table_times, table_positions, table_velocities = table
     final = table_times.size - 2
     for segment in range(start.size):
         first, second = start[segment], end[segment]
@@ -1381,16 +1381,21 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
                     continue
                 step = walked
             if from_table:
-                _hermite_in(table_times, table[1], table[2], step, t0 + x, expected, 0)
+                _hermite_in(table_times, table_positions, table_velocities, step, t0 + x,
+                            expected, 0)
             else:
                 expected[0] = planned[1][np.searchsorted(planned[0], t0 + x)]
             error = np.inf
-            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
-                            _polynomial(c, 2, x, 0), rx, ry, offset, upper, forearm_sq,
-                            reached, 0) == _ASSEMBLED:
-                dx = reached[0, 0] - expected[0, 0]
-                dy = reached[0, 1] - expected[0, 1]
-                dz = reached[0, 2] - expected[0, 2]
+            # Forward kinematics inlined, on plain floats: a compiled call taking arrays
+            # counts their references up and down at every check point.
+            q0, q1, q2 = _polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0)
+            status, reached_x, reached_y, reached_z = _forward_point(
+                math.cos(q0), math.sin(q0), math.cos(q1), math.sin(q1), math.cos(q2),
+                math.sin(q2), rx, ry, offset, upper, forearm_sq)
+            if status == _ASSEMBLED:
+                dx = reached_x - expected[0, 0]
+                dy = reached_y - expected[0, 1]
+                dz = reached_z - expected[0, 2]
                 error = math.sqrt(dx * dx + dy * dy + dz * dz)
                 if error != error:
                     error = np.inf
