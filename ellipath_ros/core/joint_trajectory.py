@@ -39,7 +39,7 @@ from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import _ASSEMBLED
-from ellipath_ros.core.kinematics import _forward_row
+from ellipath_ros.core.kinematics import _forward_point
 from ellipath_ros.core.kinematics import _kernel_geometry
 from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_motion
@@ -151,6 +151,24 @@ class JointTrajectoryData:
     def duration(self):
         """Time of the last point [s]."""
         return float(self.time_from_start[-1])
+
+    @classmethod
+    def _chained(cls, joint_names, time_from_start, positions, velocities, accelerations):
+        """
+        Return the points of a chain of checked trajectories, not checked again.
+
+        For the planner's chains of legs and rests only, whose end is checked whole by
+        :func:`validate_jtc` (after :func:`on_whole_nanoseconds`) before it is used: the
+        arrays, new float arrays made from the points of checked trajectories, are kept (made
+        read-only), not copied.
+        """
+        trajectory = object.__new__(cls)
+        object.__setattr__(trajectory, 'joint_names', joint_names)
+        for field, array in zip(_POINT_FIELDS, (time_from_start, positions, velocities,
+                                                accelerations)):
+            array.setflags(write=False)
+            object.__setattr__(trajectory, field, array)
+        return trajectory
 
 
 def _check_structure(traj, error):
@@ -310,21 +328,31 @@ def validate_jtc(traj, expect_names=None):
     if expect_names is not None and names != tuple(expect_names):
         raise TrajectoryRejectedError(
             f'joint_names: expected {tuple(expect_names)!r}, got {names!r}')
-    nanoseconds = np.round(times * 1e9)
-    same = np.diff(nanoseconds) <= 0.0
-    if same.any():
-        index = int(np.argmax(same)) + 1
+    index = _first_same_nanosecond(times)
+    if index > 0:
         raise TrajectoryRejectedError(
             f'time_from_start[{index}]: expected a time at least 1 ns after '
             f'{times[index - 1]!r} s (JTC compares whole nanoseconds), got {times[index]!r}')
     for field, values, unit in (('velocities', velocities, 'rad/s'),
                                 ('accelerations', accelerations, 'rad/s^2')):
-        moving = np.abs(values[-1]) >= REST_TOLERANCE
-        if moving.any():
-            joint = int(np.argmax(moving))
-            raise TrajectoryRejectedError(
-                f'{field}[-1] of {names[joint]}: expected 0 {unit} at the last point '
-                f'(|value| < {REST_TOLERANCE:g}), got {values[-1, joint]!r}')
+        for joint, value in enumerate(values[-1].tolist()):
+            if abs(value) >= REST_TOLERANCE:
+                raise TrajectoryRejectedError(
+                    f'{field}[-1] of {names[joint]}: expected 0 {unit} at the last point '
+                    f'(|value| < {REST_TOLERANCE:g}), got {values[-1, joint]!r}')
+
+
+@kernel
+def _first_same_nanosecond(times):
+    """
+    Return the first point not after the one before in whole nanoseconds, or 0 if none is.
+
+    The times rounded half to even, as ``numpy.round`` rounds them.
+    """
+    for point in range(1, times.size):
+        if np.rint(times[point] * 1e9) - np.rint(times[point - 1] * 1e9) <= 0.0:
+            return point
+    return 0
 
 
 def quintic_interpolate(traj, t):
@@ -637,28 +665,57 @@ def on_whole_nanoseconds(trajectory):
     state. The last point, at rest, only moves later (up to 1 ns), into its rest. The
     message then rounds nothing.
     """
-    times = trajectory.time_from_start
-    whole = np.round(times * 1e9)
-    # The last point (at rest) goes later, never earlier: the robot rests there, so its state
-    # stays exactly at rest, as the controller's rules want the end.
-    whole[-1] = math.ceil(times[-1] * 1e9 - 1e-6)
-    whole *= 1e-9
-    shift = (whole - times)[:, np.newaxis]
-    if not shift.any():
+    moved, times, positions, velocities, accelerations = _on_whole_nanoseconds(
+        trajectory.time_from_start, trajectory.positions, trajectory.velocities,
+        trajectory.accelerations)
+    if not moved:
         return trajectory
-    accelerations = trajectory.accelerations
-    segment_jerk = np.diff(accelerations, axis=0) / np.maximum(np.diff(times), 1e-12)[:, None]
-    # Forward shifts move into the segment after the point, backward ones into the one before.
-    after = np.vstack((segment_jerk, np.zeros((1, 3))))
-    before = np.vstack((np.zeros((1, 3)), segment_jerk))
-    jerk = np.where(shift > 0.0, after, before)
-    velocities = trajectory.velocities
-    return JointTrajectoryData(
-        trajectory.joint_names, whole,
-        trajectory.positions + shift * (velocities + shift * (
-            accelerations / 2.0 + shift * jerk / 6.0)),
-        velocities + shift * (accelerations + shift * jerk / 2.0),
-        accelerations + shift * jerk)
+    return JointTrajectoryData(trajectory.joint_names, times, positions, velocities,
+                               accelerations)
+
+
+@kernel
+def _on_whole_nanoseconds(times, positions, velocities, accelerations):
+    """
+    Return (moved, times, q, q_dot, q_ddot) of :func:`on_whole_nanoseconds`; moved: any point.
+
+    The arithmetic of its NumPy form, element by element: the times rounded (half to even)
+    to whole nanoseconds, the last one up; each point's shift along the Taylor step of its
+    state with the segment jerk ``diff(q_ddot) / max(diff(t), 1e-12)`` of the segment after
+    it (a forward shift) or before it (a backward one), none past either end.
+    """
+    count = times.size
+    whole = np.empty(count)
+    moved = False
+    for point in range(count):
+        nanoseconds = np.rint(times[point] * 1e9)
+        if point == count - 1:
+            # The last point (at rest) goes later, never earlier: the robot rests there, so
+            # its state stays exactly at rest, as the controller's rules want the end.
+            nanoseconds = float(math.ceil(times[point] * 1e9 - 1e-6))
+        whole[point] = nanoseconds * 1e-9
+        moved = moved or whole[point] - times[point] != 0.0
+    moved_positions = np.empty((count, 3))
+    moved_velocities = np.empty((count, 3))
+    moved_accelerations = np.empty((count, 3))
+    if not moved:
+        return False, whole, moved_positions, moved_velocities, moved_accelerations
+    for point in range(count):
+        shift = whole[point] - times[point]
+        # Forward shifts move into the segment after the point, backward ones into the one
+        # before.
+        segment = point if shift > 0.0 else point - 1
+        for j in range(3):
+            jerk = 0.0
+            if 0 <= segment < count - 1:
+                jerk = (accelerations[segment + 1, j] - accelerations[segment, j]) / max(
+                    times[segment + 1] - times[segment], 1e-12)
+            acceleration, velocity = accelerations[point, j], velocities[point, j]
+            moved_positions[point, j] = positions[point, j] + shift * (velocity + shift * (
+                acceleration / 2.0 + shift * jerk / 6.0))
+            moved_velocities[point, j] = velocity + shift * (acceleration + shift * jerk / 2.0)
+            moved_accelerations[point, j] = acceleration + shift * jerk
+    return True, whole, moved_positions, moved_velocities, moved_accelerations
 
 
 def sample_joint_trajectory(motion, geometry, period, joint_names=DEFAULT_JOINT_NAMES):
@@ -1352,10 +1409,10 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
     probe = count // 2 if limit < np.inf else -1
     first_visit = -1 if probe >= 0 else 0
     c = np.empty((6, 3))
-    reached = np.empty((1, 3))
     expected = np.empty((1, 3))
     errors = np.empty(start.size)
-    table_times = table[0]
+    # The table's arrays taken out of their tuple once, not at every check point.
+    table_times, table_positions, table_velocities = table
     final = table_times.size - 2
     for segment in range(start.size):
         first, second = start[segment], end[segment]
@@ -1381,16 +1438,21 @@ def _evaluated_errors(knots, start, end, table, planned, geometry, fractions, li
                     continue
                 step = walked
             if from_table:
-                _hermite_in(table_times, table[1], table[2], step, t0 + x, expected, 0)
+                _hermite_in(table_times, table_positions, table_velocities, step, t0 + x,
+                            expected, 0)
             else:
                 expected[0] = planned[1][np.searchsorted(planned[0], t0 + x)]
             error = np.inf
-            if _forward_row(_polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0),
-                            _polynomial(c, 2, x, 0), rx, ry, offset, upper, forearm_sq,
-                            reached, 0) == _ASSEMBLED:
-                dx = reached[0, 0] - expected[0, 0]
-                dy = reached[0, 1] - expected[0, 1]
-                dz = reached[0, 2] - expected[0, 2]
+            # Forward kinematics inlined, on plain floats: a compiled call taking arrays
+            # counts their references up and down at every check point.
+            q0, q1, q2 = _polynomial(c, 0, x, 0), _polynomial(c, 1, x, 0), _polynomial(c, 2, x, 0)
+            status, reached_x, reached_y, reached_z = _forward_point(
+                math.cos(q0), math.sin(q0), math.cos(q1), math.sin(q1), math.cos(q2),
+                math.sin(q2), rx, ry, offset, upper, forearm_sq)
+            if status == _ASSEMBLED:
+                dx = reached_x - expected[0, 0]
+                dy = reached_y - expected[0, 1]
+                dz = reached_z - expected[0, 2]
                 error = math.sqrt(dx * dx + dy * dy + dz * dz)
                 if error != error:
                     error = np.inf

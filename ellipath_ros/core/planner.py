@@ -449,7 +449,9 @@ def _mended(motion, trajectory, samples, config, earlier_times):
     accept = _SAFETY * config.knot_tolerance
     for halving in range(_MEND_HALVINGS + 1):
         times = trajectory.time_from_start
-        earlier = np.isin(times, earlier_times)
+        # Both sorted: each time's place among the earlier ones says whether it is one.
+        earlier = earlier_times[np.minimum(np.searchsorted(earlier_times, times),
+                                           earlier_times.size - 1)] == times
         made = np.flatnonzero(~(earlier[:-1] & earlier[1:]))
         deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance)
         failed = made[deviations > accept]
@@ -697,21 +699,27 @@ def _spaced(times, added):
 
     Sorted; none of ``times`` (the points there already).
     """
-    candidates = np.unique(np.asarray(added, dtype=float))
-    if candidates.size == 0:
-        return candidates
-    position = np.searchsorted(times, candidates)
-    before = times[np.maximum(position - 1, 0)]
-    after = times[np.minimum(position, times.size - 1)]
-    clear = ((np.abs(candidates - before) >= _KNOT_MIN_GAP)
-             & (np.abs(after - candidates) >= _KNOT_MIN_GAP))
-    # In time order, each candidate also keeps the gap to the one accepted before it.
-    kept, last = [], -math.inf
-    for candidate in candidates[clear].tolist():
-        if candidate - last >= _KNOT_MIN_GAP:
-            kept.append(candidate)
-            last = candidate
-    return np.array(kept)
+    return _spaced_times(times, np.sort(np.asarray(added, dtype=float)), _KNOT_MIN_GAP)
+
+
+@kernel
+def _spaced_times(times, candidates, gap):
+    """Return :func:`_spaced` of the sorted ``candidates`` (its minimal distance ``gap``)."""
+    kept = np.empty(candidates.size)
+    count, last = 0, -np.inf
+    for index in range(candidates.size):
+        candidate = candidates[index]
+        if index > 0 and candidate == candidates[index - 1]:
+            continue
+        position = np.searchsorted(times, candidate)
+        before = times[max(position - 1, 0)]
+        after = times[min(position, times.size - 1)]
+        # In time order, each candidate also keeps the gap to the one accepted before it.
+        if (abs(candidate - before) >= gap and abs(after - candidate) >= gap
+                and candidate - last >= gap):
+            kept[count] = candidate
+            count, last = count + 1, candidate
+    return kept[:count].copy()
 
 
 def _with_points(trajectory, samples, times):
@@ -854,19 +862,25 @@ def _hold(trajectory, seconds):
     Append a rest point ``seconds`` after the last one (a dwell).
 
     A dwell under a nanosecond, the resolution of the message's times, adds nothing: its
-    point would fall on the last one's time (1e-79 s did), which JTC refuses.
+    point would fall on the last one's time (1e-79 s did), which JTC refuses. A link of a
+    chain, as :func:`_concatenate`.
     """
     if seconds < 1e-9:
         return trajectory
-    return _concatenate(trajectory, JointTrajectoryData(
+    return _concatenate(trajectory, JointTrajectoryData._chained(
         trajectory.joint_names, np.array([0.0, seconds]),
         np.repeat(trajectory.positions[-1:], 2, axis=0), np.zeros((2, 3)), np.zeros((2, 3))))
 
 
 def _concatenate(first, second):
-    """Chain ``second`` after ``first``; its first point (equal to first's last) is dropped."""
+    """
+    Chain ``second`` after ``first``; its first point (equal to first's last) is dropped.
+
+    A link of a chain of checked trajectories (legs, rests): not checked again, the chain's
+    end is checked whole, on whole nanoseconds (``validate_jtc``).
+    """
     offset = first.time_from_start[-1]
-    return JointTrajectoryData(
+    return JointTrajectoryData._chained(
         first.joint_names,
         np.concatenate((first.time_from_start, offset + second.time_from_start[1:])),
         np.vstack((first.positions, second.positions[1:])),
