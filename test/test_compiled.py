@@ -51,7 +51,7 @@ SCRIPT = textwrap.dedent("""
                      {'join': 'paper', 'profile': 'curvature'}):
         config = dataclasses.replace(planner.PlannerConfig(), **settings)
         start = np.array([0.0, 0.0, -0.8])
-        for pick, place in random_pairs(12):
+        for pick, place in random_pairs(40):
             try:
                 start = planner.plan_cycle(start, pick, place, config).end_position
                 plans += 1

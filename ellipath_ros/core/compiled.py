@@ -63,6 +63,10 @@ _WARM_UP_REQUESTS = (
      {'join': 'paper', 'profile': 'curvature'}),
     (((0.0894, 0.1282, -0.6521), (-0.2907, 0.1369, -0.9257), (-0.2663, -0.1060, -0.7932)),
      {'join': 'paper', 'profile': 'time_optimal'}),
+    # A transfer whose arc the backward scan alone serves (_Scan.reversed_rows; about 1 leg in
+    # 100 on the paper join): its first such leg compiled it in the plan, 0.37 s.
+    (((0.0934, 0.0705, -0.6466), (0.0934, 0.0705, -0.6466), (0.1506, 0.0572, -0.8742)),
+     {'join': 'paper', 'profile': 'time_optimal'}),
 )
 # A request whose approach leg crosses a keep-out box (the demo's conveyor rail), planned by
 # warm_up and rejected: naming the first executed point outside the workspace calls kernels
