@@ -847,18 +847,21 @@ class EllipathNode(Node):
             self._sequencer.plan_failed('internal')
             self._report_internal(request.topic, error, pair=request.number)
             return
-        values = dict(motion.details['metrics'])
-        # plan_time: the whole plan, the message and its check included (as in 'released').
-        values.update(topic=request.topic, pair=request.number, start_source=start_source,
-                      approach_preplanned=_flag(motion.details['approach_preplanned']),
-                      plan_time=motion.plan_time,
-                      receive_to_plan_latency=time.monotonic() - request.received)
+        # plan_time: the whole plan, the message and its check included (as in 'released');
+        # it replaces the metrics' own (the planner's part).
+        values = {'topic': request.topic, 'pair': request.number, 'start_source': start_source,
+                  'approach_preplanned': _flag(motion.details['approach_preplanned']),
+                  'plan_time': motion.plan_time,
+                  'receive_to_plan_latency': time.monotonic() - request.received}
+        metrics = motion.details['metrics']
 
         def report_planned():
-            # Refers to the values, not to the motion, which holds this function: no cycle
-            # keeps the plan's arrays for the garbage collector.
+            # The metrics are computed here, on first read (0.1 ms at the median), after a
+            # motion due at once is published. Refers to the metrics and values, not to the
+            # motion, which holds this function: no cycle keeps the plan's arrays for the
+            # garbage collector.
             self._publish_status(DiagnosticStatus.OK, 'planned',
-                                 {**values, **self._queue_values()})
+                                 {**metrics, **values, **self._queue_values()})
 
         # Reported once, by whichever thread comes first: this one, or the release of the
         # motion, whose 'released' status must not come before it.
