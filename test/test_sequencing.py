@@ -362,6 +362,50 @@ def test_a_plan_that_ends_after_the_previous_motion_made_the_robot_wait(sequence
     assert release.release_delay() == pytest.approx(1.0 - 0.4 - 0.002)
 
 
+def counted_notifications(sequencer):
+    """Return a list that each wake-up of the sequencer's waiters from now on adds to."""
+    notified = []
+    condition = sequencer._condition
+    notify_all = condition.notify_all
+
+    def counting():
+        notified.append(True)
+        notify_all()
+    condition.notify_all = counting
+    return notified
+
+
+def test_finish_and_take_hands_a_motion_due_at_once_to_its_caller_without_a_wake_up(clock):
+    sequencer = Sequencer(3, clock=clock)
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    request, start = sequencer.take_for_planning()
+    notified = counted_notifications(sequencer)
+    held, due = sequencer.finish_and_take(motion_of(request, HOME))
+    assert due is held and held.ready == clock.now and held.request is request
+    assert sequencer.take_for_release() is None, 'taken already'
+    assert notified == [], 'nothing left for a release thread'
+    sequencer.released(due, clock.now)
+    # The robot busy: the motion stays held, for the release thread, which is woken.
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    request, start = sequencer.take_for_planning()
+    notified.clear()
+    held, due = sequencer.finish_and_take(motion_of(request, start))
+    assert due is None and held is not None and notified == [True]
+    assert sequencer.take_for_release() is None, 'the first one still runs'
+    assert sequencer.take_for_release(sequencer.last_release.latest_end) is held
+    counts = sequencer.counts()
+    assert (counts['planned'], counts['released']) == (2, 1) and added_up(counts)
+    # Cleared while planned: neither held nor taken, counted as dropped, waiters woken.
+    sequencer.submit(PICK, PLACE, 'pick_place')
+    request, start = sequencer.take_for_planning()
+    assert sequencer.clear() == [3]
+    notified.clear()
+    assert sequencer.finish_and_take(motion_of(request, start)) == (None, None)
+    assert notified == [True]
+    counts = sequencer.counts()
+    assert counts['dropped_cleared'] == 1 and added_up(counts)
+
+
 def test_clear_drops_waiting_planning_and_held_pairs_but_not_the_running_one(clock):
     sequencer = Sequencer(10, clock=clock)
     for _ in range(5):

@@ -708,15 +708,37 @@ class Sequencer:
         sequencer stopped) while it was planned.
         """
         with self._condition:
-            self._counts['planned'] += 1
-            if self._drop_planning():
-                self._condition.notify_all()
-                return None
-            self._planning = None
-            held = replace(motion, ready=self.clock())
-            self._held.append(held)
+            held = self._hold_planned(motion, self.clock())
             self._condition.notify_all()
             return held
+
+    def finish_and_take(self, motion, handover_rest=None):
+        """
+        Hold a planned motion (:meth:`plan_finished`) and take the oldest held one if due now.
+
+        In one step: (held, due), ``held`` as :meth:`plan_finished` returns it and ``due`` as
+        :meth:`take_for_release` (None when not due, or when ``held`` is None). Waiters
+        (:meth:`wait_for_release`) are woken only when a motion stays held: one taken here
+        is the caller's to release, and a release thread woken for it would only take the
+        GIL from the caller to find nothing.
+        """
+        with self._condition:
+            now = self.clock()
+            held = self._hold_planned(motion, now)
+            due = None if held is None else self.take_for_release(now, handover_rest)
+            if due is None or self._held:
+                self._condition.notify_all()
+            return held, due
+
+    def _hold_planned(self, motion, now):
+        """Hold ``motion`` ready at ``now`` and return it, or None if dropped; lock held."""
+        self._counts['planned'] += 1
+        if self._drop_planning():
+            return None
+        self._planning = None
+        held = replace(motion, ready=now)
+        self._held.append(held)
+        return held
 
     def plan_failed(self, kind='internal'):
         """
