@@ -17,6 +17,7 @@
 import math
 
 from ellipath_ros.bench.latency import random_pairs
+from ellipath_ros.core.joint_trajectory import _nearest_samples, _sorted_position
 from ellipath_ros.core.joint_trajectory import evaluate_segments
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import MotionSamples
@@ -88,3 +89,27 @@ def test_moves_to_whole_nanoseconds_are_the_numpy_arithmetic_bit_for_bit(seed):
     for got, want in zip((moved.time_from_start, moved.positions, moved.velocities,
                           moved.accelerations), _moved_by_numpy(trajectory)):
         assert got.tobytes() == want.tobytes()
+
+
+def test_searches_continued_from_a_lower_target_are_numpys():
+    # _sorted_position walks from where a lower target's search ended, then bisects; the knot
+    # search's nearest samples take it for targets in order and from the start otherwise.
+    rng = np.random.default_rng(7)
+    for size in (1, 2, 5, 40, 300):
+        values = np.sort(rng.choice(rng.uniform(0.0, 1.0, size), size))
+        targets = np.concatenate((rng.uniform(-0.1, 1.1, 60), values[::3],
+                                  [np.nan, np.inf, -np.inf]))
+        for target in targets:
+            expected = np.searchsorted(values, target)
+            lower = target - rng.uniform(0.0, 0.5) if math.isfinite(target) else -np.inf
+            for start in (0, np.searchsorted(values, lower)):
+                assert _sorted_position(values, target, start) == expected
+        for order in (np.sort(targets), targets):
+            low, high = order - 0.01, order + 0.01
+            nearest, usable = np.empty(order.size, np.int64), np.empty(order.size, np.bool_)
+            _nearest_samples(values, order, low, high, 0.0, nearest, usable)
+            # The rule with NumPy's search from the start.
+            index = np.minimum(np.maximum(np.searchsorted(values, order), 1), size - 1)
+            with np.errstate(invalid='ignore'):
+                closer_before = order - values[index - 1] <= values[index] - order
+            assert (nearest == np.where(closer_before, index - 1, index)).all()

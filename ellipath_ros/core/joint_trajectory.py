@@ -68,6 +68,10 @@ _PLANNED_TABLE_MIN_TOLERANCE = 1e-5
 _SAMPLE_PERIOD = 1e-4
 # Samples closer than this share of the duration count as one time (both sides of a step).
 _SAME_TIME = 1e-8
+# A search for a time in sorted times, continued from where a lower one ended, walks this many
+# steps before it bisects the rest (the knot search's wanted times come in order, mostly a
+# step or two apart among the samples).
+_WALK_STEPS = 8
 
 # Executed (JTC-interpolated) peaks, in this order: TCP speed [m/s], acceleration [m/s^2] and
 # jerk [m/s^3], joint speed [rad/s] and acceleration [rad/s^2].
@@ -982,6 +986,30 @@ def _sample_peak_rows(velocity, acceleration, jerk, qdot, qddot, out):
         out[row, 4] = max(abs(qddot[row, 0]), abs(qddot[row, 1]), abs(qddot[row, 2]))
 
 
+@kernel(inline=True)
+def _sorted_position(sorted_values, target, start):
+    """
+    Return ``np.searchsorted(sorted_values, target)``, knowing the values before ``start`` lower.
+
+    A short walk from ``start`` (a search continued from a lower target), else a binary
+    search from there; NumPy's own search for a NaN target.
+    """
+    if target != target:
+        return np.searchsorted(sorted_values, target)
+    low, high = start, sorted_values.size
+    for _ in range(_WALK_STEPS):
+        if low == high or not sorted_values[low] < target:
+            return low
+        low += 1
+    while low < high:
+        middle = (low + high) // 2
+        if sorted_values[middle] < target:
+            low = middle + 1
+        else:
+            high = middle
+    return low
+
+
 @kernel
 def _hermite_rows(table_times, position, velocity, times, rows):
     """Fill ``rows`` (N, 3) with :func:`_hermite_row` at each of ``times`` (N,)."""
@@ -1032,9 +1060,13 @@ def _nearest_samples(sorted_times, targets, low, high, same, nearest, usable):
     them (size 0), within ``same`` of the target.
     """
     last = sorted_times.size - 1
+    position = 0
     for row in range(targets.size):
         target = targets[row]
-        index = min(max(np.searchsorted(sorted_times, target), 1), last)
+        # Targets in order (as a rule) continue the search where the one before ended.
+        position = _sorted_position(sorted_times, target,
+                                    position if row > 0 and targets[row - 1] <= target else 0)
+        index = min(max(position, 1), last)
         closer_before = target - sorted_times[index - 1] <= sorted_times[index] - target
         nearest[row] = index - 1 if closer_before else index
         moved = sorted_times[nearest[row]]
@@ -1338,18 +1370,27 @@ def _placed(wanted, low, high, context):
     positions, velocities, accelerations = (np.empty((count, 3)), np.empty((count, 3)),
                                             np.empty((count, 3)))
     missing = np.zeros(count, np.bool_)
+    found, searched = 0, np.inf
+    # Element by element: a row view (q[row]) counts its array's references up and down.
     for knot in range(count):
         if usable[knot]:
             row = nearest[knot]
             times[knot] = sample_times[row]
-            positions[knot], velocities[knot], accelerations[knot] = q[row], qdot[row], qddot[row]
+            for axis in range(3):
+                positions[knot, axis] = q[row, axis]
+                velocities[knot, axis] = qdot[row, axis]
+                accelerations[knot, axis] = qddot[row, axis]
             continue
-        row = np.searchsorted(evaluated_wanted, wanted[knot])
+        # Wanted in order (as a rule): each search continues from the one before.
+        row = _sorted_position(evaluated_wanted, wanted[knot],
+                               found if wanted[knot] >= searched else 0)
+        found, searched = row, wanted[knot]
         if row < evaluated_wanted.size and evaluated_wanted[row] == wanted[knot]:
             times[knot] = evaluated_times[row]
-            positions[knot] = evaluated_q[row]
-            velocities[knot] = evaluated_qdot[row]
-            accelerations[knot] = evaluated_qddot[row]
+            for axis in range(3):
+                positions[knot, axis] = evaluated_q[row, axis]
+                velocities[knot, axis] = evaluated_qdot[row, axis]
+                accelerations[knot, axis] = evaluated_qddot[row, axis]
         else:
             missing[knot] = True
     knots = (times, positions, velocities, accelerations)
@@ -1522,13 +1563,18 @@ def _refine(knots, errors, context, accept, shortest):
         added = start + np.arange(1, start.size + 1)
         merged = (np.empty(count), np.empty((count, 3)), np.empty((count, 3)),
                   np.empty((count, 3)))
+        merged_times, merged_q, merged_qdot, merged_qddot = merged
         for source_knots, rows in ((knots, position), (middle, added)):
+            # Element by element, the arrays out of their tuples once: a tuple item or a row
+            # view counts its array's references up and down.
+            source_times, source_q, source_qdot, source_qddot = source_knots
             for knot in range(rows.size):
                 row = rows[knot]
-                merged[0][row] = source_knots[0][knot]
-                merged[1][row] = source_knots[1][knot]
-                merged[2][row] = source_knots[2][knot]
-                merged[3][row] = source_knots[3][knot]
+                merged_times[row] = source_times[knot]
+                for axis in range(3):
+                    merged_q[row, axis] = source_q[knot, axis]
+                    merged_qdot[row, axis] = source_qdot[knot, axis]
+                    merged_qddot[row, axis] = source_qddot[knot, axis]
         child = np.zeros(count - 1, np.bool_)
         child[added - 1] = True
         child[added] = True

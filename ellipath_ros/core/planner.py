@@ -48,7 +48,7 @@ from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
 from .timing import time_motion
-from .workspace import inside, SafeWorkspace
+from .workspace import clearance, inside, SafeWorkspace
 
 # Path samples for the reachability check and the joint-speed cap: at most this far apart.
 _REACH_CHECK_SPACING = 0.002
@@ -89,13 +89,9 @@ _SAME_POINT = 1e-6
 # kinematics) is checked against the safe workspace: at 4 m/s the TCP moves 0.4 mm per step,
 # so between two samples a bound is crossed by at most max_speed * step / 2 more.
 _WORKSPACE_CHECK_PERIOD = 1e-4
-# Periods per block of that check whose two ends, if inside by the distance the TCP covers in
-# half a block (the executed peak speed times this margin), stand for the whole block: only the
-# blocks near a bound are checked at every period (same result, some 10 times fewer samples).
-_WORKSPACE_CHECK_STRIDE = 10
-# Such blocks are first tested in groups of this many, the same way (the margin this many
-# times larger): a slow leg (the curvature profile's, seconds long) is mostly far from a bound.
-_WORKSPACE_COARSE_BLOCKS = 16
+# A sample inside the workspace by a clearance stands for the samples of its segment that the
+# TCP reaches in less time than it needs to cover that clearance at this many times the
+# segment's executed peak speed (only the samples near a bound are evaluated: same result).
 _WORKSPACE_SPEED_MARGIN = 1.01
 # The executed motion may cross a workspace bound by this much at a sample [m]: JTC's
 # interpolation wobbles by micrometres about a vertical segment on the boundary (a pick at
@@ -565,38 +561,38 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
                                                      samples.scaled(slowdown, motion))
         else:
             trajectory, table = _slowed_points(trajectory, table, factor)
-    _check_executed_workspace(trajectory, config, leg, float(table[:, 0].max()))
+    _check_executed_workspace(trajectory, config, leg, table[:, 0])
     knot_positions = samples.tcp_positions(trajectory.time_from_start / slowdown)
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown, executed)
 
 
-def _check_executed_workspace(trajectory, config, leg, speed=None):
+def _check_executed_workspace(trajectory, config, leg, speeds=None):
     """
     Raise WorkspaceError if JTC's interpolation of ``trajectory`` leaves the workspace.
 
-    Checked at every ``_WORKSPACE_CHECK_PERIOD``; with ``speed``, the largest executed TCP
-    speed [m/s], only where a sample every ``_WORKSPACE_CHECK_STRIDE`` periods is within
-    the distance the TCP can cover in half that stride of a bound (the others are inside
-    at every instant, not only at the samples), and first in groups of
-    ``_WORKSPACE_COARSE_BLOCKS`` such strides, with the same result.
+    Checked at every ``_WORKSPACE_CHECK_PERIOD`` from the first point to the last; with
+    ``speeds`` (S,), the executed TCP speed peak of each segment [m/s] (the first column of
+    :func:`executed_table`), only the samples that the ones before them do not stand for
+    (:func:`_first_outside`: same result).
     """
     times = trajectory.time_from_start
     count = max(int(math.ceil((times[-1] - times[0]) / _WORKSPACE_CHECK_PERIOD)) + 1, 2)
-    t = np.linspace(times[0], times[-1], count)
-    stride, coarse_blocks, margin = 1, 1, 0.0
-    if speed is not None and math.isfinite(speed):
-        stride, coarse_blocks = _WORKSPACE_CHECK_STRIDE, _WORKSPACE_COARSE_BLOCKS
-        margin = _WORKSPACE_SPEED_MARGIN * max(speed, 0.0) * stride * (t[1] - t[0]) / 2.0
+    # Without a finite speed, every sample is evaluated.
+    speed_bounds = np.full(times.size - 1, np.inf)
+    if speeds is not None:
+        speed_bounds = _WORKSPACE_SPEED_MARGIN * np.asarray(speeds, dtype=float)
+        speed_bounds[~np.isfinite(speed_bounds)] = np.inf
     workspace = config.workspace
     if _first_outside(times, trajectory.positions, trajectory.velocities,
-                      trajectory.accelerations, t, stride, coarse_blocks, margin,
+                      trajectory.accelerations, count, speed_bounds,
                       *_kernel_geometry(config.geometry)[:5], workspace.radius, workspace.z_min,
                       workspace.z_max, workspace.box_table(),
                       _EXECUTED_WORKSPACE_TOLERANCE) < 0:
         return
     # Named as the vectorised check names it: the first sample out of reach or outside.
+    t = np.linspace(times[0], times[-1], count)
     tcp = forward_kinematics(quintic_positions(trajectory, t), config.geometry,
                              name='interpolated q')
     workspace.check(tcp, name=f'executed TCP of the {leg} leg', times=t,
@@ -604,77 +600,61 @@ def _check_executed_workspace(trajectory, config, leg, speed=None):
 
 
 @kernel
-def _first_outside(knots, positions, velocities, accelerations, times, stride, coarse_blocks,
-                   margin, rx, ry, offset, upper, forearm_sq, radius, z_min, z_max, boxes,
-                   tolerance):
+def _first_outside(knots, positions, velocities, accelerations, count, speed_bounds, rx, ry,
+                   offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
     """
-    Return the first of ``times`` (evenly spaced) whose executed TCP leaves the workspace, or -1.
+    Return the first of ``count`` samples whose executed TCP leaves the workspace, or -1.
 
-    The executed TCP is the forward kinematics of JTC's quintic through the knots (the last
-    point held from the last knot on); a pose that cannot be assembled counts as outside.
-    The times are taken in blocks of ``stride`` intervals: a block whose two ends are
-    inside by ``margin`` (at least the distance the TCP covers in half a block) is inside
-    throughout; the samples of any other block are checked one by one, in order. Blocks of
-    ``coarse_blocks`` such blocks are tested the same way first, with ``coarse_blocks``
-    times the margin.
+    The samples are ``np.linspace(knots[0], knots[-1], count)``. The executed TCP is the
+    forward kinematics of JTC's quintic through the knots; a pose that cannot be assembled
+    counts as outside. A sample inside by a clearance (:func:`clearance`) stands for the
+    later samples of its segment the TCP reaches in at most the clearance over
+    ``speed_bounds`` of the segment (a bound of its speed there, inf for none): they are
+    inside too. The other samples are evaluated one by one, in order.
     """
     c = np.empty((6, 3))
     segment = np.full(1, -1)
-    last = times.size - 1
-    # Blocks of ``coarse`` strides first: most of a leg is far from every bound.
-    coarse = stride * coarse_blocks
-    start = 0
-    start_clear = _executed_inside(knots, positions, velocities, accelerations, times[0], c,
-                                   segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
-                                   z_max, boxes, tolerance - margin * coarse_blocks)
-    while start < last:
-        end = min(start + coarse, last)
-        end_clear = _executed_inside(knots, positions, velocities, accelerations, times[end],
-                                     c, segment, rx, ry, offset, upper, forearm_sq, radius,
-                                     z_min, z_max, boxes, tolerance - margin * coarse_blocks)
-        if not (start_clear and end_clear):
-            row = _first_outside_between(knots, positions, velocities, accelerations, times,
-                                         start, end, stride, margin, c, segment, rx, ry, offset,
-                                         upper, forearm_sq, radius, z_min, z_max, boxes,
-                                         tolerance)
-            if row >= 0:
-                return row
-        start, start_clear = end, end_clear
+    first, final = knots[0], knots[knots.size - 1]
+    step = (final - first) / (count - 1)
+    row = 0
+    while row < count:
+        time = _sample_time(row, first, final, step, count)
+        margin = _executed_clearance(knots, positions, velocities, accelerations, time, c,
+                                     segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
+                                     z_max, boxes, tolerance)
+        if margin < 0.0:
+            return row
+        if segment[0] < 0 or time >= final:
+            row += 1
+            continue
+        # segment[0] is the segment of ``time``: its speed bound holds until its end.
+        end = knots[segment[0] + 1]
+        bound = speed_bounds[segment[0]]
+        reach = end if bound * (end - time) <= margin else time + margin / bound
+        covered = min(int((reach - first) / step), count - 1)
+        while covered > row and _sample_time(covered, first, final, step, count) > reach:
+            covered -= 1
+        while (covered + 1 < count
+               and _sample_time(covered + 1, first, final, step, count) <= reach):
+            covered += 1
+        row = max(covered, row) + 1
     return -1
 
 
-@kernel
-def _first_outside_between(knots, positions, velocities, accelerations, times, first, last,
-                           stride, margin, c, segment, rx, ry, offset, upper, forearm_sq,
-                           radius, z_min, z_max, boxes, tolerance):
-    """Return :func:`_first_outside` of the rows ``first`` to ``last`` of ``times``, or -1."""
-    start = first
-    start_clear = _executed_inside(knots, positions, velocities, accelerations, times[first],
-                                   c, segment, rx, ry, offset, upper, forearm_sq, radius, z_min,
-                                   z_max, boxes, tolerance - margin)
-    while start < last:
-        end = min(start + stride, last)
-        end_clear = _executed_inside(knots, positions, velocities, accelerations, times[end],
-                                     c, segment, rx, ry, offset, upper, forearm_sq, radius,
-                                     z_min, z_max, boxes, tolerance - margin)
-        if not (start_clear and end_clear):
-            for row in range(start, end + 1):
-                if not _executed_inside(knots, positions, velocities, accelerations,
-                                        times[row], c, segment, rx, ry, offset, upper,
-                                        forearm_sq, radius, z_min, z_max, boxes, tolerance):
-                    return row
-        start, start_clear = end, end_clear
-    return -1
+@kernel(inline=True)
+def _sample_time(row, first, final, step, count):
+    """Return np.linspace(first, final, count)[row] (``step`` its spacing), bit for bit."""
+    return final if row == count - 1 else row * step + first
 
 
 @kernel
-def _executed_inside(knots, positions, velocities, accelerations, time, c, segment, rx, ry,
-                     offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
+def _executed_clearance(knots, positions, velocities, accelerations, time, c, segment, rx, ry,
+                        offset, upper, forearm_sq, radius, z_min, z_max, boxes, tolerance):
     """
-    Tell whether the executed TCP at ``time`` is assembled and in the workspace.
+    Return the workspace clearance of the executed TCP at ``time`` [m], -1 if not inside.
 
-    ``c`` (6, 3) holds the quintic of segment ``segment[0]`` (-1: none yet), refilled
-    when ``time`` is in another segment.
+    -1 also if the pose cannot be assembled. ``c`` (6, 3) holds the quintic of segment
+    ``segment[0]`` (-1: none yet), refilled when ``time`` is in another segment.
     """
     final = knots.size - 1
     if time >= knots[final] or final == 0:
@@ -690,7 +670,9 @@ def _executed_inside(knots, positions, velocities, accelerations, time, c, segme
     status, x_, y_, z_ = _forward_point(
         math.cos(joints[0]), math.sin(joints[0]), math.cos(joints[1]), math.sin(joints[1]),
         math.cos(joints[2]), math.sin(joints[2]), rx, ry, offset, upper, forearm_sq)
-    return status == _ASSEMBLED and inside(x_, y_, z_, radius, z_min, z_max, boxes, tolerance)
+    if status != _ASSEMBLED or not inside(x_, y_, z_, radius, z_min, z_max, boxes, tolerance):
+        return -1.0
+    return clearance(x_, y_, z_, radius, z_min, z_max, boxes, tolerance)
 
 
 def _spaced(times, added):

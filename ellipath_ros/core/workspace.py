@@ -260,3 +260,22 @@ def inside(x, y, z, radius, z_min, z_max, boxes, tolerance):
             and math.hypot(x, y) <= radius + tolerance
             and z_min - tolerance <= z <= z_max + tolerance
             and _box_of(x, y, z, boxes, tolerance) < 0)
+
+
+@kernel
+def clearance(x, y, z, radius, z_min, z_max, boxes, tolerance):
+    """
+    Return how far a point :func:`inside` the workspace may move and stay inside [m] (compiled).
+
+    Its least distance to the cylinder and to the keep-out boxes, each widened (the boxes
+    shrunk) by ``tolerance`` as :func:`inside` widens them; a box is left behind along an
+    axis on which the point is outside it. Meaningless for a point not inside.
+    """
+    distance = min(radius + tolerance - math.hypot(x, y), z - (z_min - tolerance),
+                   z_max + tolerance - z)
+    for box in range(boxes.shape[0]):
+        beyond = max(boxes[box, 0] + tolerance - x, x - (boxes[box, 3] - tolerance),
+                     boxes[box, 1] + tolerance - y, y - (boxes[box, 4] - tolerance),
+                     boxes[box, 2] + tolerance - z, z - (boxes[box, 5] - tolerance))
+        distance = min(distance, beyond)
+    return max(distance, 0.0)
