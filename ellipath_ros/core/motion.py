@@ -105,10 +105,13 @@ def _piece_states(times, s0, v0, a0, jerk, t, state):
 def _piece_state(times, s0, v0, a0, jerk, t):
     """Return (s, v, a, j) of :class:`_JerkPieces`' arrays at one time ``t``."""
     index = min(max(np.searchsorted(times, t, side='right') - 1, 0), jerk.size - 1)
-    x = t - times[index]
-    j, a, v = jerk[index], a0[index], v0[index]
-    return (s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0),
-            a + x * j, j)
+    return _cubic_state(t - times[index], s0[index], v0[index], a0[index], jerk[index])
+
+
+@kernel(inline=True)
+def _cubic_state(x, s, v, a, j):
+    """Return (s, v, a, j) ``x`` [s] into a constant-jerk piece that starts in state (s, v, a)."""
+    return (s + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0), a + x * j, j)
 
 
 class _PieceList:
