@@ -185,7 +185,11 @@ class _CurvatureArcLaw:
         The panels follow the law's own scale (even steps of theta, narrower near the
         tightest points), whatever its duration; within one the law is smooth.
         """
-        return _piece_sample_times(self._hermite_table[0], count)
+        return _piece_sample_times(self.sample_bounds(), count)
+
+    def sample_bounds(self):
+        """Return the times [s] (M,) across which :meth:`sample_times` steps: the panels'."""
+        return self._hermite_table[0]
 
     def theta(self, t):
         """Return theta at times ``t`` (N,) from the start of this law."""
