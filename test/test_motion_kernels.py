@@ -212,3 +212,25 @@ def test_merged_jerk_steps_are_the_array_formulas_bit_for_bit():
         found = motion_module._merged_steps(times, sizes, marks, jerk, 1e-9, 1.0)
         expected = steps_by_arrays(times, sizes, marks, jerk, 1e-9, 1.0)
         assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))
+
+
+def test_sequence_sample_times_are_the_array_formula_bit_for_bit():
+    rng = np.random.default_rng(17)
+    for durations in ((0.12, 0.3, 0.09), (0.2,), (0.1, 1e-12, 0.25, 0.05)):
+        # Pieces of random widths (one law shorter than the offsets off its ends: out of
+        # order before the sort).
+        laws = []
+        for duration in durations:
+            widths = rng.uniform(0.1, 1.0, rng.integers(1, 30))
+            times = np.concatenate(([0.0], np.cumsum(widths / widths.sum() * duration)))
+            zeros = np.zeros(times.size - 1)
+            laws.append(motion_module._JerkPieces(times, zeros, zeros, zeros, zeros))
+        sequence = motion_module._Sequence(tuple(laws))
+        for count in (1, 4, 7):
+            starts = sequence._starts
+            epsilon = 1e-9 * float(starts[-1])
+            expected = np.sort(np.concatenate([start + np.clip(
+                motion_module._piece_sample_times(law.times, count), epsilon,
+                law.duration - epsilon) for start, law in zip(starts, laws)] + [starts]))
+            found = sequence.sample_times(count)
+            assert found.dtype == expected.dtype and np.array_equal(found, expected)

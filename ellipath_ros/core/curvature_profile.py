@@ -52,7 +52,7 @@ from .compiled import kernel
 from .errors import InvalidInputError, LimitError, require_range
 from .geometry import ellipse_speed, EllipticArc
 from .limits import _ACCEL_MARGIN, _cap_values, _JERK_MARGIN, _SPEED_MARGIN
-from .motion import (_piece_sample_times, _piece_state, _pieces_law, _Sequence,
+from .motion import (_cubic_state, _piece_sample_times, _pieces_law, _Sequence,
                      TimedMotion)
 from .ruckig_lines import _constant_limits, _line_rows, _ruckig_rows, _straight_motion
 
@@ -185,7 +185,11 @@ class _CurvatureArcLaw:
         The panels follow the law's own scale (even steps of theta, narrower near the
         tightest points), whatever its duration; within one the law is smooth.
         """
-        return _piece_sample_times(self._hermite_table[0], count)
+        return _piece_sample_times(self.sample_bounds(), count)
+
+    def sample_bounds(self):
+        """Return the times [s] (M,) across which :meth:`sample_times` steps: the panels'."""
+        return self._hermite_table[0]
 
     def theta(self, t):
         """Return theta at times ``t`` (N,) from the start of this law."""
@@ -375,36 +379,47 @@ def _sequence_rows(t, starts, piece_times, piece_rows, first_times, first_pieces
     are concatenated: law i has ``piece_times[first_times[i]:first_times[i + 1]]`` and
     the columns ``first_pieces[i]:first_pieces[i + 1]`` of ``piece_rows`` (s0, v0, a0,
     jerk); law ``arc_law`` is the arc law, with the arrays :func:`_law_states` takes.
-    Each is evaluated at the time from its start, by its own formulas.
+    Each is evaluated at the time from its start, by its own formulas. The loop calls
+    each law's step itself: a step inlined into an inlined step pays the reference
+    counts of the arrays it takes on every sample (this loop took twice the time so).
     """
     factors = _path_factors(a, b, rate)
     panel = 0
     for index in range(t.size):
-        rows[0, index], rows[1, index], rows[2, index], rows[3, index], panel = (
-            _sequence_state(t[index], starts, piece_times, piece_rows, first_times,
-                            first_pieces, arc_law, arc_times, arc_panels, a, b, factors, panel))
+        law = min(max(np.searchsorted(starts, t[index], side='right') - 1, 0), starts.size - 2)
+        x = t[index] - starts[law]
+        if law == arc_law:
+            _, s, speed, accel, jerk, panel = _law_state(x, arc_times, arc_panels, a, b, factors,
+                                                         panel)
+        else:
+            s, speed, accel, jerk = _law_piece_state(
+                piece_times, first_times[law], first_times[law + 1], piece_rows,
+                first_pieces[law], first_pieces[law + 1], x)
+        rows[0, index], rows[1, index], rows[2, index], rows[3, index] = s, speed, accel, jerk
 
 
 @kernel(inline=True)
-def _sequence_state(t, starts, piece_times, piece_rows, first_times, first_pieces, arc_law,
-                    arc_times, arc_panels, a, b, factors, panel):
+def _law_piece_state(piece_times, first_time, end_time, piece_rows, first_piece, end_piece, t):
     """
-    Return s, s', s'', s''' of the sequence at one time ``t``, and the arc law's panel.
+    Return :func:`~ellipath_ros.core.motion._piece_state` of one constant-jerk law at ``t``.
 
-    The arguments are :func:`_sequence_rows`', ``factors`` :func:`_path_factors`; the arc
-    law's search for the panel starts from ``panel``.
+    The law is ``piece_times[first_time:end_time]`` and the columns
+    ``first_piece:end_piece`` of ``piece_rows`` (s0, v0, a0, jerk), read in place, not
+    through slices (views, with reference counts). The piece is found by numba's
+    bisection of ``np.searchsorted(times, t, side='right')`` on that range (a NaN ``t``
+    is after every time): the same piece, and the same arithmetic.
     """
-    law = min(max(np.searchsorted(starts, t, side='right') - 1, 0), starts.size - 2)
-    x = t - starts[law]
-    if law == arc_law:
-        _, s, speed, accel, jerk, panel = _law_state(x, arc_times, arc_panels, a, b, factors,
-                                                     panel)
-        return s, speed, accel, jerk, panel
-    first, end = first_pieces[law], first_pieces[law + 1]
-    s, speed, accel, jerk = _piece_state(
-        piece_times[first_times[law]:first_times[law + 1]], piece_rows[0, first:end],
-        piece_rows[1, first:end], piece_rows[2, first:end], piece_rows[3, first:end], x)
-    return s, speed, accel, jerk, panel
+    low, high = first_time, end_time
+    while low < high:
+        middle = low + ((high - low) >> 1)
+        if math.isnan(t) or piece_times[middle] <= t:
+            low = middle + 1
+        else:
+            high = middle
+    index = min(max(low - first_time - 1, 0), end_piece - first_piece - 1)
+    column = first_piece + index
+    return _cubic_state(t - piece_times[first_time + index], piece_rows[0, column],
+                        piece_rows[1, column], piece_rows[2, column], piece_rows[3, column])
 
 
 @kernel
@@ -419,23 +434,20 @@ def _newton_rows(lengths, t, factor, duration, starts, piece_times, piece_rows, 
     unless it is 1; NumPy's clip (the larger of the value and 0, then the smaller of that
     and the duration) on each step.
     """
-    factors = _path_factors(a, b, rate)
-    panel = 0
+    law_times, rows = np.empty(t.size), np.empty((4, t.size))
     for _ in range(3):
         outside = False
         for index in range(t.size):
             outside = outside or t[index] < 0.0 or t[index] > duration
         for index in range(t.size):
-            now = t[index]
-            if outside:
-                now = _clipped(now, duration)
-            s, speed, _, _, panel = _sequence_state(
-                now / factor, starts, piece_times, piece_rows, first_times, first_pieces,
-                arc_law, arc_times, arc_panels, a, b, factors, panel)
-            if factor != 1.0:
-                speed = speed / factor
+            law_times[index] = (_clipped(t[index], duration) if outside else t[index]) / factor
+        _sequence_rows(law_times, starts, piece_times, piece_rows, first_times, first_pieces,
+                       arc_law, arc_times, arc_panels, a, b, rate, rows)
+        for index in range(t.size):
+            speed = rows[1, index] / factor if factor != 1.0 else rows[1, index]
             if speed > 1e-9:
-                t[index] = _clipped(t[index] - (s - lengths[index]) / speed, duration)
+                t[index] = _clipped(t[index] - (rows[0, index] - lengths[index]) / speed,
+                                    duration)
 
 
 @kernel(inline=True)

@@ -82,7 +82,11 @@ class _JerkPieces:
         Inside a piece s' is a quadratic and s'' linear in time, so samples that follow the
         pieces follow the law's own scale, whatever the duration.
         """
-        return _piece_sample_times(self.times, count)
+        return _piece_sample_times(self.sample_bounds(), count)
+
+    def sample_bounds(self):
+        """Return the times [s] (K + 1,) across which :meth:`sample_times` steps: the bounds."""
+        return self.times
 
     def state(self, t):
         """Return (s, v, a, j), each shaped like ``t`` (N,)."""
@@ -105,10 +109,13 @@ def _piece_states(times, s0, v0, a0, jerk, t, state):
 def _piece_state(times, s0, v0, a0, jerk, t):
     """Return (s, v, a, j) of :class:`_JerkPieces`' arrays at one time ``t``."""
     index = min(max(np.searchsorted(times, t, side='right') - 1, 0), jerk.size - 1)
-    x = t - times[index]
-    j, a, v = jerk[index], a0[index], v0[index]
-    return (s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0),
-            a + x * j, j)
+    return _cubic_state(t - times[index], s0[index], v0[index], a0[index], jerk[index])
+
+
+@kernel(inline=True)
+def _cubic_state(x, s, v, a, j):
+    """Return (s, v, a, j) ``x`` [s] into a constant-jerk piece that starts in state (s, v, a)."""
+    return (s + x * (v + x * (a / 2.0 + x * j / 6.0)), v + x * (a + x * j / 2.0), a + x * j, j)
 
 
 class _PieceList:
@@ -142,6 +149,41 @@ def _piece_sample_times(bounds, count):
     bounds = np.ascontiguousarray(bounds, dtype=float)
     counts = np.broadcast_to(np.asarray(count, dtype=np.int64), (bounds.size - 1,))
     return _times_across(bounds, np.ascontiguousarray(counts), math.inf)
+
+
+@kernel
+def _sequence_sample_times(bounds, ends, starts, durations, count):
+    """
+    Return :meth:`_Sequence.sample_times`: ``count`` even steps across each law's intervals.
+
+    Law i has the bounds ``bounds[ends[i]:ends[i + 1]]`` (:func:`_times_across` of them),
+    the duration ``durations[i]`` and starts at ``starts[i]`` (``starts`` (L + 1,) ends with
+    the sequence's end); its times are kept 1e-9 of the whole span inside it (NumPy's clip:
+    the larger of the time and that, then the smaller of that and the duration less it),
+    then moved by its start. Sorted with ``starts``: the operations of the NumPy formulas
+    these were first written in, so the same times bit for bit.
+    """
+    epsilon = 1e-9 * starts[-1]
+    total = starts.size
+    for law in range(durations.size):
+        total += (ends[law + 1] - ends[law] - 1) * (count + 1)
+    t = np.empty(total)
+    row = 0
+    for law in range(durations.size):
+        t[row] = starts[law]
+        row += 1
+        law_bounds = bounds[ends[law]:ends[law + 1]]
+        law_times = _times_across(law_bounds, np.full(law_bounds.size - 1, count, np.int64),
+                                  np.inf)
+        high = durations[law] - epsilon
+        for value in law_times:
+            value = value if value > epsilon else epsilon
+            t[row] = starts[law] + (value if value < high else high)
+            row += 1
+    t[row] = starts[-1]
+    # In order unless a law is shorter than the offsets off its ends.
+    _sort_unless_sorted(t)
+    return t
 
 
 def _pieces_law(rows, s_offset=0.0):
@@ -199,12 +241,16 @@ class _Sequence:
         return self._bounds
 
     def sample_times(self, count):
-        """Return sorted times [s]: each law's :meth:`sample_times`, its ends on both sides."""
-        starts = self._starts
-        epsilon = 1e-9 * float(starts[-1])
-        times = [start + np.clip(law.sample_times(count), epsilon, law.duration - epsilon)
-                 for start, law in zip(starts, self.laws)]
-        return np.sort(np.concatenate(times + [starts]))
+        """
+        Return sorted times [s]: each law's :meth:`sample_times`, its ends on both sides.
+
+        Each law's times from its ``sample_bounds()`` (:func:`_sequence_sample_times`, in one
+        compiled pass).
+        """
+        bounds = [law.sample_bounds() for law in self.laws]
+        return _sequence_sample_times(
+            np.concatenate(bounds), np.cumsum([0] + [values.size for values in bounds]),
+            self._starts, np.array([law.duration for law in self.laws]), count)
 
     def newton_times(self, lengths, t, factor, duration):
         """
@@ -739,13 +785,24 @@ def _times_across(bounds, counts, duration):
             row += 1
     t[row] = bounds[-1]
     # In order unless a piece is narrower than the offsets off its bounds.
-    for row in range(1, total):
-        if t[row] < t[row - 1]:
-            t.sort()
-            break
+    _sort_unless_sorted(t)
     for row in range(total):
         t[row] = min(t[row], duration)
     return t
+
+
+@kernel(inline=True)
+def _sort_unless_sorted(t):
+    """
+    Sort ``t`` (N,) in place if it is out of order.
+
+    Sample times are assembled in order but for rare narrow pieces; numba's sort of
+    nearly sorted times would cost three times the assembly.
+    """
+    for row in range(1, t.size):
+        if t[row] < t[row - 1]:
+            t.sort()
+            return
 
 
 def _sample_times(duration, period):
