@@ -321,3 +321,18 @@ def test_cap_stairs_are_the_lowest_cap_each_stair_spans():
     lowest = np.minimum(scaled[:-1], scaled[1:]).reshape(-1, 8).min(axis=1)
     assert cells.tobytes() == np.repeat(lowest, 8).tobytes()
     assert cells[8] == 0.999 * values[8:17].min() and np.isfinite(cells).all()
+
+
+def test_the_chosen_probes_scan_is_kept_as_a_new_scan_from_its_state_would_step():
+    # A G2 end's probes hand their steps to the arc's scans from their end states: the
+    # chosen one's scan takes what a new scan takes and spends the budget as a new one does.
+    path = plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78], join='g2')
+    clearance = float(path.segment_lengths[0])
+    planner = optimal_profile._ArcPlanner(path, CartesianLimits(), None)
+    speed, accel = planner.end_state(planner.end_speed(clearance, True, None), clearance,
+                                     True, None)
+    scan = planner.forward.scan(0.0, speed, accel, planner.length)
+    assert scan.info[_KNOWN] > 20 and not scan.info[_FAILURES]
+    new = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    assert _run_scan(planner.forward, scan) == _run_scan(
+        new, new.scan(0.0, speed, accel, planner.length))
