@@ -321,3 +321,47 @@ def test_cap_stairs_are_the_lowest_cap_each_stair_spans():
     lowest = np.minimum(scaled[:-1], scaled[1:]).reshape(-1, 8).min(axis=1)
     assert cells.tobytes() == np.repeat(lowest, 8).tobytes()
     assert cells[8] == 0.999 * values[8:17].min() and np.isfinite(cells).all()
+
+
+def _until_level_off_one_by_one(v, a, jerk, h, speed, level):
+    """Return the level-off time by 40 bisections one after another (the plain reference)."""
+    low, high, twice_level = 0.0, h, 2.0 * level
+    for _ in range(40):
+        x = 0.5 * (low + high)
+        jerk_x = jerk * x
+        a1 = a + jerk_x
+        if v + x * (a + jerk_x / 2.0) + a1 * a1 / twice_level > speed:
+            high = x
+        else:
+            low = x
+    return low
+
+
+def test_two_bisections_per_pass_find_the_level_off_of_one_by_one_to_the_last_bit():
+    # Random steps whose level-off lies inside them, at their ends or beyond them.
+    rng = np.random.default_rng(7)
+    found = set()
+    for _ in range(3000):
+        v, a, h = rng.uniform(0.05, 2.0), rng.uniform(0.0, 40.0), rng.uniform(2e-5, 1e-3)
+        jerk, level = rng.uniform(-1000.0, 1000.0), rng.uniform(1.0, 900.0)
+        speed = v + (a * a / (2.0 * level) + a * h) * rng.uniform(0.5, 1.5)
+        expected = _until_level_off_one_by_one(v, a, jerk, h, speed, level)
+        assert arc_scan._until_level_off(v, a, jerk, h, speed, level) == expected
+        assert arc_scan._until_level_off.py_func(v, a, jerk, h, speed, level) == expected
+        found.add(0.0 < expected < h)
+    assert found == {True, False}
+
+
+def test_the_chosen_probes_scan_is_kept_as_a_new_scan_from_its_state_would_step():
+    # A G2 end's probes hand their steps to the arc's scans from their end states: the
+    # chosen one's scan takes what a new scan takes and spends the budget as a new one does.
+    path = plan_path([0.1, -0.05, -0.9], [-0.15, 0.1, -0.78], join='g2')
+    clearance = float(path.segment_lengths[0])
+    planner = optimal_profile._ArcPlanner(path, CartesianLimits(), None)
+    speed, accel = planner.end_state(planner.end_speed(clearance, True, None), clearance,
+                                     True, None)
+    scan = planner.forward.scan(0.0, speed, accel, planner.length)
+    assert scan.info[_KNOWN] > 20 and not scan.info[_FAILURES]
+    new = optimal_profile._ArcPlanner(path, CartesianLimits(), None).forward
+    assert _run_scan(planner.forward, scan) == _run_scan(
+        new, new.scan(0.0, speed, accel, planner.length))

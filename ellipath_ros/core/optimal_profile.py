@@ -33,7 +33,7 @@ import numpy as np
 
 from .arc_scan import (
     _ACCEL_SQUARED, _advance, _ADVANCED, _arc_tables, _bisect_right, _CELL, _COUNT, _END,
-    _jerk_range, _LIVE, _new_scan, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min,
+    _FAILURES, _jerk_range, _LIVE, _new_scan, _NoMotion, _OUT_OF_STEPS, _py_max, _py_min,
     _reversed_rows, _rows, _run, _Scanner, _speed_at, _SPEED_TARGET, _state, _STATUS,
     _STOPPED, _table_at, _time_at, _TWO)
 from .compiled import kernel
@@ -227,7 +227,10 @@ class _ArcPlanner:
         own (its back-ups must not lower the plan's targets), then the rest of
         the horizon from the scan's last speed at ``_PROBE_ACCEL`` of
         max_accel (a faster probe there is ahead). Inf where the line or the
-        scan fails.
+        scan fails. A scan that took its steps without backing up (its shares
+        all 1, as the plan's before its first scan) is the start of the arc's
+        scan from that end state (the chosen one's; the one at s'' = 0 also
+        where a chosen s'' != 0 fails): the scanner keeps it (:meth:`_Scanner.keep`).
         """
         path, limits = self.path, self.limits
         bend = path.bend
@@ -248,8 +251,10 @@ class _ArcPlanner:
             return math.inf
         horizon = min(_PROBE_HORIZON * self._transitions[at_start], 0.5 * self.length)
         reach = _PROBE_REACH * horizon
-        reached, time, last = _probe_scan(scanner.table, scanner.constants, float(speed),
-                                          float(accel), reach, _PROBE_STEPS)
+        reached, time, last, states, info = _probe_scan(
+            scanner.table, scanner.constants, float(speed), float(accel), reach, _PROBE_STEPS)
+        if info[_FAILURES] == 0:
+            scanner.keep(states, info)
         if not reached:
             return math.inf
         rest_accel = _PROBE_ACCEL * limits.max_accel
@@ -485,21 +490,22 @@ class _ArcPlanner:
 @kernel
 def _probe_scan(table, constants, speed, accel, reach, steps):
     """
-    Return (reached, time [s], s' there) of a probe's scan from (0, speed, accel) to reach [m].
+    Return (reached, time [s], s' there, states, info) of a probe's scan from (0, speed, accel).
 
     On the ``table`` and ``constants`` of one of the plan's scanners, with back-up shares
     and a budget of ``steps`` of its own (its back-ups must not lower the plan's targets);
-    reached is False where it stops before ``reach`` or runs out of steps.
+    reached is False where it stops before ``reach`` [m] or runs out of steps. ``states``
+    and ``info`` are the scan's (see arc_scan's layouts).
     """
     factor = np.ones(table.shape[1] + 1)
     budget = np.full(1, steps)
-    scan = _new_scan(0.0, speed, accel, reach, steps + 2)
-    if _run((table, constants, factor, budget), scan) == _OUT_OF_STEPS or (
-            scan[1][_STATUS] != _END):
-        return False, 0.0, 0.0
-    states, count = scan[0], scan[1][_COUNT]
+    states, info, floats = _new_scan(0.0, speed, accel, reach, steps + 2)
+    if _run((table, constants, factor, budget), (states, info, floats)) == _OUT_OF_STEPS or (
+            info[_STATUS] != _END):
+        return False, 0.0, 0.0, states, info
+    count = info[_COUNT]
     time = _time_at(states, count, reach)
-    return True, time, _state(states, count, time)[1]
+    return True, time, _state(states, count, time)[1], states, info
 
 
 @kernel
