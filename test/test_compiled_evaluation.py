@@ -38,10 +38,11 @@ def _evaluations():
     """Return the arrays of every compiled evaluation on a small seeded case."""
     from ellipath_ros.core.geometry import plan_path
     from ellipath_ros.core.joint_trajectory import (
-        DEFAULT_JOINT_NAMES, executed_table, JointTrajectoryData, minimal_knots, MotionSamples,
+        DEFAULT_JOINT_NAMES, executed_table, JointTrajectoryData, MotionSamples,
         quintic_interpolate)
     from ellipath_ros.core.kinematics import (
         DeltaGeometry, forward_kinematics, joint_motion, tcp_derivatives)
+    from ellipath_ros.core.knots import minimal_knots
     from ellipath_ros.core.motion import _cartesian, _pieces_law
 
     rng = np.random.default_rng(11)

@@ -19,7 +19,8 @@ import os
 import sys
 
 from ellipath_ros.core.errors import EllipathError
-from ellipath_ros.core.joint_trajectory import executed_peaks, minimal_knots
+from ellipath_ros.core.joint_trajectory import executed_peaks
+from ellipath_ros.core.knots import minimal_knots
 from ellipath_ros.core.limits import CartesianLimits
 from ellipath_ros.core.planner import _EXECUTED_JERK_SHARE, plan_transfer, PlannerConfig
 from ellipath_ros.core.timing import _around, _SAFETY_REFINE, _within_limits, time_motion

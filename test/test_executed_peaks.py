@@ -18,8 +18,9 @@ from ellipath_ros.core import joint_trajectory, kinematics
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.joint_trajectory import (
     _EXECUTED_REFINE_SHARE, _joint_extremes, _quadratic_roots, DEFAULT_JOINT_NAMES,
-    evaluate_segments, executed_table, JointTrajectoryData, minimal_knots, segment_polynomials)
+    evaluate_segments, executed_table, JointTrajectoryData, segment_polynomials)
 from ellipath_ros.core.kinematics import inverse_kinematics, tcp_derivatives
+from ellipath_ros.core.knots import minimal_knots
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 import numpy as np
 import pytest

@@ -16,18 +16,14 @@
 
 from types import SimpleNamespace
 
-from ellipath_ros.core import joint_trajectory
+from ellipath_ros.core import knots as knot_search
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import LimitError
 from ellipath_ros.core.errors import UnreachableError
-from ellipath_ros.core.joint_trajectory import _equidistributed
-from ellipath_ros.core.joint_trajectory import _error_weights
-from ellipath_ros.core.joint_trajectory import _weight_sum
 from ellipath_ros.core.joint_trajectory import check_joint_limits
 from ellipath_ros.core.joint_trajectory import DEFAULT_JOINT_NAMES
 from ellipath_ros.core.joint_trajectory import executed_table
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
-from ellipath_ros.core.joint_trajectory import minimal_knots
 from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.joint_trajectory import quintic_interpolate
 from ellipath_ros.core.joint_trajectory import sample_joint_trajectory
@@ -37,6 +33,10 @@ from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import JointLimits
+from ellipath_ros.core.knots import _equidistributed
+from ellipath_ros.core.knots import _error_weights
+from ellipath_ros.core.knots import _weight_sum
+from ellipath_ros.core.knots import minimal_knots
 import numpy as np
 import pytest
 
@@ -246,26 +246,26 @@ def test_minimal_knots_evaluate_the_starting_knots_before_the_search(monkeypatch
     grid = np.linspace(0.0, ARC.duration, 4)
     samples = MotionSamples(ARC, GEOMETRY, grid, ARC.state_at(grid))
     runs = []
-    search = joint_trajectory._search_knots
+    search = knot_search._search_knots
 
     def recorded(initial, *arguments):
         result = search(initial, *arguments)
         runs.append((initial, result))
         return result
 
-    monkeypatch.setattr(joint_trajectory, '_search_knots', recorded)
+    monkeypatch.setattr(knot_search, '_search_knots', recorded)
     traj, reported = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=5e-6, samples=samples)
     initial = runs[0][0]
     assert initial.size > grid.size
     for _, (status, *_, wanted, _, _, _) in runs:
-        assert status != joint_trajectory._NEEDS_STATES or not np.isin(wanted, initial).any()
+        assert status != knot_search._NEEDS_STATES or not np.isin(wanted, initial).any()
     # The same knots when the search is handed no starting state and stops for them.
-    monkeypatch.setattr(joint_trajectory, '_cells', lambda times: (
+    monkeypatch.setattr(knot_search, '_cells', lambda times: (
         np.full(times.size, -np.inf), np.full(times.size, np.inf)))
     runs.clear()
     unaided, unaided_error = minimal_knots(ARC, GEOMETRY, NAMES, tolerance=5e-6,
                                            samples=samples)
-    assert runs[0][1][0] == joint_trajectory._NEEDS_STATES
+    assert runs[0][1][0] == knot_search._NEEDS_STATES
     assert all(np.array_equal(mine, theirs) for mine, theirs in zip(
         (traj.time_from_start, traj.positions, traj.velocities, traj.accelerations),
         (unaided.time_from_start, unaided.positions, unaided.velocities,

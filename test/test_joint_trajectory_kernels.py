@@ -22,9 +22,9 @@ from ellipath_ros.core.joint_trajectory import evaluate_segments
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
 from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.joint_trajectory import on_whole_nanoseconds
-from ellipath_ros.core.joint_trajectory import segment_deviations
 from ellipath_ros.core.joint_trajectory import segment_polynomials
 from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.knots import segment_deviations
 from ellipath_ros.core.planner import plan_transfer
 from ellipath_ros.core.planner import PlannerConfig
 import numpy as np

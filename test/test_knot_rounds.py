@@ -16,9 +16,9 @@
 
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import planner
-from ellipath_ros.core.joint_trajectory import (
-    MotionSamples, quintic_interpolate, segment_deviations)
+from ellipath_ros.core.joint_trajectory import MotionSamples, quintic_interpolate
 from ellipath_ros.core.kinematics import forward_kinematics
+from ellipath_ros.core.knots import segment_deviations
 from ellipath_ros.core.planner import plan_transfer, PlannerConfig
 import numpy as np
 

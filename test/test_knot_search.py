@@ -17,12 +17,12 @@
 import dataclasses
 
 from ellipath_ros.bench.latency import random_pairs
-from ellipath_ros.core import joint_trajectory
+from ellipath_ros.core import knots as knot_search
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.errors import InvalidInputError
-from ellipath_ros.core.joint_trajectory import minimal_knots
 from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.kinematics import _kernel_geometry
+from ellipath_ros.core.knots import minimal_knots
 from ellipath_ros.core.planner import plan_transfer
 from ellipath_ros.core.planner import PlannerConfig
 import numpy as np
@@ -52,13 +52,13 @@ LEGS = {'g2': bench_legs(CONFIG, 24),
 def evaluate_whole(monkeypatch):
     """Make the search evaluate every check point of every segment (it stops nowhere early)."""
     for name in SEARCH_KERNELS:
-        monkeypatch.setattr(joint_trajectory, name, getattr(joint_trajectory, name).py_func)
-    evaluated = joint_trajectory._evaluated_errors
+        monkeypatch.setattr(knot_search, name, getattr(knot_search, name).py_func)
+    evaluated = knot_search._evaluated_errors
 
     def whole(knots, start, end, table, planned, geometry, fractions, limit, all_or_none=False):
         return evaluated(knots, start, end, table, planned, geometry, fractions, np.inf, False)
 
-    monkeypatch.setattr(joint_trajectory, '_evaluated_errors', whole)
+    monkeypatch.setattr(knot_search, '_evaluated_errors', whole)
 
 
 def knots_of(motion, tolerance, samples):
@@ -115,15 +115,15 @@ def test_evaluated_errors_stop_above_the_limit():
     end = np.searchsorted(times, ends)
     keep = end > start
     start, end = start[keep], end[keep]
-    table = joint_trajectory._planned_table(samples, 1e-4)
+    table = knot_search._planned_table(samples, 1e-4)
     geometry = _kernel_geometry(CONFIG.geometry)[:5]
     fractions = np.arange(1, 25) / 25.0
     planned = (np.empty(0), np.empty((0, 3)))
 
     def errors(limit, all_or_none):
-        status, values, _ = joint_trajectory._evaluated_errors(
+        status, values, _ = knot_search._evaluated_errors(
             knots, start, end, table, planned, geometry, fractions, limit, all_or_none)
-        assert status == joint_trajectory._FOUND
+        assert status == knot_search._FOUND
         return values
 
     whole = errors(np.inf, False)

@@ -37,13 +37,13 @@ from .errors import InvalidInputError, LimitError, require_point
 from .geometry import ArcPolicy, PickPlacePath, plan_path, require_coordinates
 from .joint_trajectory import (
     _fill_quintic, _polynomial, _SAFETY, check_joint_limits, EXECUTED_KEYS, executed_table,
-    JointTrajectoryData, minimal_knots, MotionSamples, on_whole_nanoseconds,
-    quintic_interpolate, quintic_positions, sample_joint_trajectory, segment_deviations,
-    validate_jtc)
+    JointTrajectoryData, MotionSamples, on_whole_nanoseconds, quintic_interpolate,
+    quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
     _ASSEMBLED, _forward_point, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
     forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
     largest_magnitude_per_row)
+from .knots import minimal_knots, segment_deviations
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
