@@ -138,3 +138,40 @@ def test_evaluated_errors_stop_above_the_limit():
     batch = errors(limit, True)
     assert np.array_equal(batch[:first], whole[:first])
     assert np.isinf(batch[first:]).all()
+
+
+def test_a_search_going_on_from_its_stops_finds_what_one_run_finds(monkeypatch):
+    # A run after a stop for states starts at the round or trial that stopped (a checkpoint),
+    # not at the initial knots. Given every state and planned position the runs asked for
+    # before it starts, one run from the initial knots stops nowhere and must find the same
+    # knots and error. Curvature legs stop in both steps; a sparse sample set below the
+    # planned table's resolution stops for positions too (the checkpoint kept, the journal
+    # replayed).
+    search = knot_search._search_knots
+    runs = []
+
+    def recorded(*arguments):
+        result = search(*arguments)
+        runs.append((arguments, result))
+        return result
+
+    monkeypatch.setattr(knot_search, '_search_knots', recorded)
+    motion = LEGS['curvature'][0]
+    grid = np.linspace(0.0, motion.duration, 9)
+    cases = [(motion, 1e-4, MotionSamples.of(motion, CONFIG.geometry))
+             for motion in LEGS['curvature']]
+    cases.append((motion, 5e-6, MotionSamples(motion, CONFIG.geometry, grid,
+                                              motion.state_at(grid))))
+    phases, stops = set(), set()
+    for case in cases:
+        runs.clear()
+        knots, error = knots_of(*case)
+        phases.update(arguments[-1][0] for arguments, _ in runs)
+        stops.update(result[0] for _, result in runs[:-1])
+        arguments, _ = runs[-1]
+        once = search(*arguments[:-2], np.empty(0), knot_search._START)
+        assert once[0] == knot_search._FOUND
+        assert all(np.array_equal(mine, theirs) for mine, theirs in zip(knots, once[1:5]))
+        assert error == once[5]
+    assert {knot_search._REFINING, knot_search._REPLACING} <= phases
+    assert stops == {knot_search._NEEDS_STATES, knot_search._NEEDS_PLANNED}

@@ -88,7 +88,8 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     on the motion's samples (:class:`MotionSamples`) nearest to where the search wants them,
     so the search evaluates the motion only where no sample is near. The search is one
     compiled call (:func:`_search_knots`); where it needs the motion at a time that no
-    sample gives, it stops, the motion is evaluated there, and it runs again.
+    sample gives, it stops, the motion is evaluated there, and it goes on from the step
+    where it stopped.
 
     Parameters
     ----------
@@ -143,11 +144,12 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     if missing.any():
         wanted = initial[missing]
         evaluated.add_states(wanted, samples.states(wanted, low[missing], high[missing]))
-    journal = np.empty(0)
+    arms = _kernel_geometry(geometry)[:5]
+    journal, checkpoint = np.empty(0), _START
     while True:
-        status, times, q, qdot, qddot, error, wanted, low, high, journal = _search_knots(
-            initial, source, evaluated.states, table, evaluated.planned,
-            _kernel_geometry(geometry)[:5], fractions, accept, shortest, journal)
+        (status, times, q, qdot, qddot, error, checkpoint, wanted, low, high,
+         journal) = _search_knots(initial, source, evaluated.states, table, evaluated.planned,
+                                  arms, fractions, accept, shortest, journal, checkpoint)
         if status == _NEEDS_STATES:
             evaluated.add_states(wanted, samples.states(wanted, low, high))
         elif status == _NEEDS_PLANNED:
@@ -240,6 +242,12 @@ def _deviations_of(knots, segments, table, planned, geometry, fractions):
 _FOUND, _NEEDS_STATES, _NEEDS_PLANNED, _TOO_FINE, _NOT_FINITE = range(5)
 # No planned table: the check points' planned positions are evaluated (_Evaluated.planned).
 _NO_TABLE = (np.empty(0), np.empty((3, 0)), np.empty((3, 0)))
+# Where a run of _search_knots starts (a checkpoint's phase): at the initial knots, at a round
+# of halving rejected segments (_refine), or at a trial of the re-placement (_replace).
+_FROM_START, _REFINING, _REPLACING = range(3)
+# The checkpoint of a search that starts at the initial knots (see _search_knots).
+_START = (_FROM_START, 0, 0, 0, (np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
+                                 np.empty((0, 3))), np.empty(0), np.empty(0), np.empty(0))
 
 
 class _Evaluated:
@@ -270,7 +278,7 @@ def _merged_rows(kept, added):
 
 @kernel
 def _search_knots(initial, source, evaluated, table, planned, geometry, fractions, accept,
-                  shortest, journal):
+                  shortest, journal, checkpoint):
     """
     Run the knot search of :func:`minimal_knots` from knots wanted at ``initial`` (K,).
 
@@ -279,30 +287,58 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     (:meth:`MotionSamples.planned_table`), or empty when the planned positions at the check
     points are those of ``planned`` (times, positions), ``geometry`` the first five of
     :func:`~ellipath_ros.core.kinematics._kernel_geometry`. Returns (status, times, q,
-    q_dot, q_ddot, largest error, a, b, c), with, for ``_NEEDS_STATES``, the times wanted
-    and their cells (a, b, c) to evaluate; for ``_NEEDS_PLANNED``, the check times (a); for
-    ``_TOO_FINE``, the time (a[0]) and error (b[0]) of the segment that cannot be split;
-    for ``_NOT_FINITE``, the estimate that is not finite as the error; and the ``journal``:
-    the segment errors of every evaluation, in order. A run after a stop repeats the stopped
-    one up to the stop (nothing it used has changed), so it takes those errors from the
-    journal of the stopped run instead of evaluating them again.
+    q_dot, q_ddot, largest error, checkpoint, a, b, c, journal), with, for
+    ``_NEEDS_STATES``, the times wanted and their cells (a, b, c) to evaluate; for
+    ``_NEEDS_PLANNED``, the check times (a); for ``_TOO_FINE``, the time (a[0]) and error
+    (b[0]) of the segment that cannot be split; for ``_NOT_FINITE``, the estimate that is
+    not finite as the error.
+
+    A run after a stop goes on from the ``checkpoint`` and ``journal`` the stopped one
+    returned (``_START`` and an empty journal at first). The checkpoint (phase, trial,
+    target, pruned, knots, errors, times, measured) is the state of the search at the start
+    of the step that stopped for states: a round of :func:`_refine` or a trial of
+    :func:`_replace`, which evaluate nothing before their placement stops; a run from it
+    does what a run from the initial knots would do from there on (what the steps before
+    used has not changed). A stop for planned positions keeps the checkpoint, and the
+    journal holds the segment errors of every evaluation since it, in order: the next run
+    repeats the stopped one up to the stop, and takes those errors from the journal instead
+    of evaluating them again.
     """
     record = (journal, np.zeros(1, np.int64), [np.empty(0)])
     context = (source, evaluated, table, planned, geometry, fractions, record)
-    low, high = _cells(initial)
-    status, knots, need = _placed(initial, low, high, context)
-    errors, error = np.empty(0), 0.0
-    if status == _FOUND:
-        # A rejected segment is halved (_refine): its error is not needed whole.
-        index = np.arange(knots[0].size)
-        status, errors, need = _segment_errors(knots, index[:-1], index[1:], context, accept)
-    if status == _FOUND:
+    phase, trial_number, target, pruned, knots, errors, times, measured = checkpoint
+    status, need, error = _FOUND, _no_need(), 0.0
+    if phase == _FROM_START:
+        low, high = _cells(initial)
+        status, knots, need = _placed(initial, low, high, context)
+        if status == _FOUND:
+            # A rejected segment is halved (_refine): its error is not needed whole.
+            index = np.arange(knots[0].size)
+            status, errors, need = _segment_errors(knots, index[:-1], index[1:], context,
+                                                   accept)
+        phase = _REFINING
+    moved = False
+    if status == _FOUND and phase == _REFINING:
         status, knots, errors, need = _refine(knots, errors, context, accept, shortest)
+        if status == _NEEDS_STATES:
+            checkpoint, moved = (_REFINING, 0, 0, 0, knots, errors, times, measured), True
+        # The re-placement from its start.
+        trial_number = -1
     if status == _FOUND:
-        status, knots, errors, need, error = _replace(knots, errors, context, accept,
-                                                      shortest)
+        status, knots, errors, need, error, state = _replace(
+            knots, errors, context, accept, shortest,
+            (trial_number, target, pruned, times, measured))
+        if status == _NEEDS_STATES:
+            checkpoint = (_REPLACING, state[0], state[1], state[2], knots, errors, state[3],
+                          state[4])
+            moved = True
     if status == _FOUND:
         error = errors.max()
+    outcome = (status, knots[0], knots[1], knots[2], knots[3], error, checkpoint, need[0],
+               need[1], need[2])
+    if moved:
+        # From a new checkpoint, the next run evaluates all it needs: no journal.
+        return outcome + (np.empty(0),)
     batches = record[2]
     written = journal.size
     for batch in batches:
@@ -313,8 +349,7 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     for batch in batches:
         journal_out[written:written + batch.size] = batch
         written += batch.size
-    return (status, knots[0], knots[1], knots[2], knots[3], error, need[0], need[1],
-            need[2], journal_out)
+    return outcome + (journal_out,)
 
 
 @kernel
@@ -616,28 +651,36 @@ def _prune(knots, errors, context, accept):
 
 
 @kernel
-def _replace(knots, errors, context, accept, shortest):
+def _replace(knots, errors, context, accept, shortest, resumed):
     """
     Re-place refined knots by their error density, then prune (steps 2 and 3).
 
     Dyadic halving leaves knots on a coarse lattice: trial sets with fewer segments are
     spread over the measured error density (:func:`_equidistributed`), and a set is kept
-    only if every segment passes. Returns (status, knots, errors, need, estimate).
+    only if every segment passes. ``resumed`` = (trial, target, pruned, times, measured):
+    the state at the start of the trial to go on from (trial -1: from the start). Returns
+    (status, knots, errors, need, estimate, the state at the start of the last trial).
     """
-    times, measured = knots[0], errors
-    estimate = _segment_count(measured, accept)
-    if estimate < 0:
-        return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured)
-    target = min(estimate, times.size - 2)
-    pruned = False
-    for trial_number in range(_REPLACEMENTS):
+    first_trial, target, pruned_before, times, measured = resumed
+    pruned = pruned_before != 0
+    if first_trial < 0:
+        first_trial, times, measured = 0, knots[0], errors
+        estimate = _segment_count(measured, accept)
+        if estimate < 0:
+            return (_NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured),
+                    (0, target, 0, times, measured))
+        target = min(estimate, times.size - 2)
+        pruned = False
+    state = (first_trial, target, 1 if pruned else 0, times, measured)
+    for trial_number in range(first_trial, _REPLACEMENTS):
         if target < 1:
             break
+        state = (trial_number, target, 1 if pruned else 0, times, measured)
         wanted = _equidistributed(times, measured, target)
         low, high = _cells(wanted)
         status, trial, need = _placed(wanted, low, high, context)
         if status != _FOUND:
-            return status, knots, errors, need, 0.0
+            return status, knots, errors, need, 0.0, state
         trial_times = trial[0]
         if (trial_times[1:] - trial_times[:-1]).min() < shortest:
             break
@@ -649,7 +692,7 @@ def _replace(knots, errors, context, accept, shortest):
         status, trial_errors, need = _segment_errors(
             trial, index[:-1], index[1:], context, accept if decisive else np.inf, decisive)
         if status != _FOUND:
-            return status, knots, errors, need, 0.0
+            return status, knots, errors, need, 0.0, state
         if not np.isfinite(trial_errors).all():
             # JTC's quintic between two trial knots passes a pose the arms cannot assemble
             # (or a decisive set failed, its later errors inf): the set is rejected, and the
@@ -662,11 +705,11 @@ def _replace(knots, errors, context, accept, shortest):
         times, measured = trial_times, trial_errors
         estimate = _segment_count(measured, accept)
         if estimate < 0:
-            return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured)
+            return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured), state
         if (trial_errors <= accept).all():
             status, knots, errors, need = _prune(trial, trial_errors, context, accept)
             if status != _FOUND:
-                return status, knots, errors, need, 0.0
+                return status, knots, errors, need, 0.0, state
             pruned = True
             target = min(estimate, knots[0].size - 2)
         else:
@@ -675,8 +718,8 @@ def _replace(knots, errors, context, accept, shortest):
                 break
     if not pruned:
         status, knots, errors, need = _prune(knots, errors, context, accept)
-        return status, knots, errors, need, 0.0
-    return _FOUND, knots, errors, _no_need(), 0.0
+        return status, knots, errors, need, 0.0, state
+    return _FOUND, knots, errors, _no_need(), 0.0, state
 
 
 @kernel
