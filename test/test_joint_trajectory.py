@@ -280,9 +280,9 @@ def test_knot_count_estimate_adds_as_numpy_sum():
         errors[rng.random(count) < 0.1] = 0.0  # clamped to 1e-300 first
         weights = _error_weights(errors)
         if count <= 128:
-            assert _weight_sum(errors) == np.sum(weights)
+            assert _weight_sum(weights) == np.sum(weights)
         else:  # blocks of 128 added in turn, NumPy halves: the same within rounding
-            assert abs(_weight_sum(errors) - np.sum(weights)) <= 1e-14 * np.sum(weights)
+            assert abs(_weight_sum(weights) - np.sum(weights)) <= 1e-14 * np.sum(weights)
 
 
 def test_equidistributed_knots_are_numpys_interpolation():
@@ -292,11 +292,12 @@ def test_equidistributed_knots_are_numpys_interpolation():
             times = np.concatenate(([0.0], np.cumsum(rng.uniform(1e-4, 0.05, size - 1))))
             errors = 10.0 ** rng.uniform(-10.0, -4.0, size - 1)
             errors[0] = 0.0
-            cumulative = np.concatenate(([0.0], np.cumsum(_error_weights(errors))))
+            weights = _error_weights(errors)
+            cumulative = np.concatenate(([0.0], np.cumsum(weights)))
             expected = np.interp(np.linspace(0.0, cumulative[-1], count + 1), cumulative,
                                  times)
             expected[0], expected[-1] = times[0], times[-1]
-            found = _equidistributed(times, errors, count)
+            found = _equidistributed(times, weights, count)
             np.testing.assert_array_equal(found, expected)
             assert (np.diff(found) > 0.0).all()
 

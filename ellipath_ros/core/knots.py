@@ -295,7 +295,7 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
 
     A run after a stop goes on from the ``checkpoint`` and ``journal`` the stopped one
     returned (``_START`` and an empty journal at first). The checkpoint (phase, trial,
-    target, pruned, knots, errors, times, measured) is the state of the search at the start
+    target, pruned, knots, errors, times, weights) is the state of the search at the start
     of the step that stopped for states: a round of :func:`_refine` or a trial of
     :func:`_replace`, which evaluate nothing before their placement stops; a run from it
     does what a run from the initial knots would do from there on (what the steps before
@@ -306,7 +306,7 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     """
     record = (journal, np.zeros(1, np.int64), [np.empty(0)])
     context = (source, evaluated, table, planned, geometry, fractions, record)
-    phase, trial_number, target, pruned, knots, errors, times, measured = checkpoint
+    phase, trial_number, target, pruned, knots, errors, times, weights = checkpoint
     status, need, error = _FOUND, _no_need(), 0.0
     if phase == _FROM_START:
         low, high = _cells(initial)
@@ -321,13 +321,13 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     if status == _FOUND and phase == _REFINING:
         status, knots, errors, need = _refine(knots, errors, context, accept, shortest)
         if status == _NEEDS_STATES:
-            checkpoint, moved = (_REFINING, 0, 0, 0, knots, errors, times, measured), True
+            checkpoint, moved = (_REFINING, 0, 0, 0, knots, errors, times, weights), True
         # The re-placement from its start.
         trial_number = -1
     if status == _FOUND:
         status, knots, errors, need, error, state = _replace(
             knots, errors, context, accept, shortest,
-            (trial_number, target, pruned, times, measured))
+            (trial_number, target, pruned, times, weights))
         if status == _NEEDS_STATES:
             checkpoint = (_REPLACING, state[0], state[1], state[2], knots, errors, state[3],
                           state[4])
@@ -657,26 +657,28 @@ def _replace(knots, errors, context, accept, shortest, resumed):
 
     Dyadic halving leaves knots on a coarse lattice: trial sets with fewer segments are
     spread over the measured error density (:func:`_equidistributed`), and a set is kept
-    only if every segment passes. ``resumed`` = (trial, target, pruned, times, measured):
-    the state at the start of the trial to go on from (trial -1: from the start). Returns
+    only if every segment passes. ``resumed`` = (trial, target, pruned, times, weights): the
+    state at the start of the trial to go on from (trial -1: from the start), with the
+    :func:`_error_weights` of the last measured set (knots at ``times``). Returns
     (status, knots, errors, need, estimate, the state at the start of the last trial).
     """
-    first_trial, target, pruned_before, times, measured = resumed
+    first_trial, target, pruned_before, times, weights = resumed
     pruned = pruned_before != 0
     if first_trial < 0:
-        first_trial, times, measured = 0, knots[0], errors
-        estimate = _segment_count(measured, accept)
+        # Weighed once per measured set, for its estimate and its re-placement.
+        first_trial, times, weights = 0, knots[0], _error_weights(errors)
+        estimate = _segment_count(weights, accept)
         if estimate < 0:
-            return (_NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured),
-                    (0, target, 0, times, measured))
+            return (_NOT_FINITE, knots, errors, _no_need(), _weight_sum(weights),
+                    (0, target, 0, times, weights))
         target = min(estimate, times.size - 2)
         pruned = False
-    state = (first_trial, target, 1 if pruned else 0, times, measured)
+    state = (first_trial, target, 1 if pruned else 0, times, weights)
     for trial_number in range(first_trial, _REPLACEMENTS):
         if target < 1:
             break
-        state = (trial_number, target, 1 if pruned else 0, times, measured)
-        wanted = _equidistributed(times, measured, target)
+        state = (trial_number, target, 1 if pruned else 0, times, weights)
+        wanted = _equidistributed(times, weights, target)
         low, high = _cells(wanted)
         status, trial, need = _placed(wanted, low, high, context)
         if status != _FOUND:
@@ -702,10 +704,10 @@ def _replace(knots, errors, context, accept, shortest, resumed):
             if target >= knots[0].size - 1:
                 break
             continue
-        times, measured = trial_times, trial_errors
-        estimate = _segment_count(measured, accept)
+        times, weights = trial_times, _error_weights(trial_errors)
+        estimate = _segment_count(weights, accept)
         if estimate < 0:
-            return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(measured), state
+            return _NOT_FINITE, knots, errors, _no_need(), _weight_sum(weights), state
         if (trial_errors <= accept).all():
             status, knots, errors, need = _prune(trial, trial_errors, context, accept)
             if status != _FOUND:
@@ -732,15 +734,14 @@ def _error_weights(errors):
 
 
 @kernel
-def _weight_sum(errors):
+def _weight_sum(weights):
     """
-    Return the sum of :func:`_error_weights`, added as ``numpy.sum`` adds up to 128 values.
+    Return the sum of ``weights`` (:func:`_error_weights`), as ``numpy.sum`` adds up to 128.
 
     NumPy's pairwise summation: a plain loop below 8 values, else eight interleaved partial
     sums (to 128 values; NumPy halves longer arrays, here blocks of 128 are added in turn),
     so that the estimates equal NumPy's.
     """
-    weights = _error_weights(errors)
     total = 0.0
     for first in range(0, weights.size, 128):
         block = weights[first:first + 128]
@@ -763,29 +764,31 @@ def _weight_sum(errors):
 
 
 @kernel
-def _segment_count(errors, accept):
+def _segment_count(weights, accept):
     """
     Estimate how many segments keep every error at ``accept``; -1 if the errors say nothing.
 
-    See :func:`_equidistributed`; -1 when the sum of the weights is not finite.
+    From the measured segments' ``weights`` (:func:`_error_weights`): see
+    :func:`_equidistributed`; -1 when their sum is not finite.
     """
-    total = _weight_sum(errors)
+    total = _weight_sum(weights)
     if not math.isfinite(total):
         return -1
     return max(1, math.ceil(total / accept ** (1.0 / 6.0)))
 
 
 @kernel
-def _equidistributed(times, errors, count):
+def _equidistributed(times, weights, count):
     """
     Return ``count + 1`` knot times that spread an estimated error density evenly.
 
     On a smooth stretch the quintic's error grows like ``C h^6`` with the segment length h, so
     ``(error / h^6)^(1/6)``, constant on each measured segment, is a local density whose
-    integral over a segment is ``error^(1/6)``. Knots at equal steps of its integral balance
-    the segment errors. The arithmetic of ``numpy.cumsum``, ``linspace`` and ``interp``.
+    integral over a segment is ``error^(1/6)``: the segment's weight (:func:`_error_weights`
+    of the errors measured on the segments between ``times``). Knots at equal steps of its
+    integral balance the segment errors. The arithmetic of ``numpy.cumsum``, ``linspace`` and
+    ``interp``.
     """
-    weights = _error_weights(errors)
     cumulative = np.empty(times.size)
     cumulative[0] = 0.0
     for segment in range(weights.size):
