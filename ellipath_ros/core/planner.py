@@ -790,8 +790,7 @@ def _joint_points(motion, config, bounds, samples=None):
     for _ in range(_KNOT_ROUNDS):
         times = trajectory.time_from_start
         # Points mend what the quintic adds to the motion, not what the motion itself has.
-        broken = np.flatnonzero(((table > bounds) & (
-            table > (1.0 + _QUINTIC_EXCESS) * samples.segment_peaks(times))).any(axis=1))
+        broken = samples.segments_beyond(times, table, bounds, 1.0 + _QUINTIC_EXCESS)
         if broken.size == 0:
             break
         if steps is None:
