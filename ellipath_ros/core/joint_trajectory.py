@@ -863,12 +863,7 @@ class MotionSamples:
                                 np.ascontiguousarray(bounds, dtype=float), share)
 
     def _peak_source(self):
-        """
-        Return the samples' times and the (N, 3) rates the planned peaks are of, C order.
-
-        Passed to the kernels one by one: a compiled call types a tuple of arrays in Python,
-        at ten times the cost of its arrays.
-        """
+        """Return the samples' times and the (N, 3) rates the planned peaks are of, C order."""
         if self._peak_arrays is None:
             self._peak_arrays = tuple(np.ascontiguousarray(values) for values in (
                 self.times, self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot))
