@@ -1057,7 +1057,6 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
     return -1, _IK_OK, 0, 0.0
 
 
-
 # An angle whose sines from both joint limits exceed this share of |cos q| + |sin q| is inside
 # the limits without its atan2: far beyond any rounding of the cross products (~1e-15).
 _LIMIT_TEST_MARGIN = 1e-9
