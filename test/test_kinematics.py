@@ -19,13 +19,15 @@ import math
 
 from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.errors import UnreachableError
-from ellipath_ros.core.kinematics import assembled_joint_rates
+from ellipath_ros.core.kinematics import _inside_joint_limits
+from ellipath_ros.core.kinematics import _limit_trig
 from ellipath_ros.core.kinematics import check_reachable
 from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import joint_accelerations
 from ellipath_ros.core.kinematics import joint_motion
+from ellipath_ros.core.kinematics import joint_speed_caps
 from ellipath_ros.core.kinematics import joint_velocities
 from ellipath_ros.core.kinematics import JointLimits
 from ellipath_ros.core.kinematics import reachable
@@ -312,18 +314,52 @@ def test_joint_motion_is_inverse_kinematics_and_its_rates():
                      GEOMETRY)
 
 
-def test_assembled_joint_rates_are_the_rates_or_none_at_any_failure():
+def test_joint_speed_caps_are_the_limit_over_the_largest_rate_or_none_at_any_failure():
     points = np.array(GOOD)
-    velocities = np.array([[0.5, -1.0, 0.2], [2.0, 0.0, -1.0], [0.0, 1.5, 1.5]])
-    q, qdot = assembled_joint_rates(points, velocities, GEOMETRY)
-    np.testing.assert_array_equal(q, inverse_kinematics(points, GEOMETRY))
-    # joint_velocities takes cos q, sin q of the given q; joint_motion's IK has them without a
-    # trigonometric call: the same to the last bits.
-    np.testing.assert_allclose(qdot, joint_velocities(points, q, velocities, GEOMETRY),
-                               rtol=1e-13, atol=0.0)
-    # Out of reach (above the base), and the stretched-arm singularity: no rates, no error.
+    directions = np.array([[0.5, -1.0, 0.2], [2.0, 0.0, -1.0], [0.0, 0.0, 0.0]])
+    caps = joint_speed_caps(points, directions, GEOMETRY, 8.0)
+    _, qdot, _ = joint_motion(points, directions, np.zeros((3, 3)), GEOMETRY)
+    # joint_motion's rates, bit for bit; no rate counts as 1e-12.
+    largest = np.maximum(np.abs(qdot).max(axis=1), 1e-12)
+    np.testing.assert_array_equal(caps, 8.0 / largest)
+    assert caps[2] == 8.0 / 1e-12
+    # Out of reach (above the base, beyond an arm's sphere), the stretched-arm singularity,
+    # beyond a joint limit: no caps, no error.
     d, reach = 0.155, 0.350 + 0.800
     stretched = [0.0, 0.0, -math.sqrt(reach ** 2 - d ** 2)]
-    for bad in ([0.0, 0.0, 0.1], stretched):
-        assert assembled_joint_rates(np.vstack((points, bad)), np.ones((4, 3)),
-                                     GEOMETRY) is None
+    for bad, why in (([0.0, 0.0, 0.1], 'above'), ([0.0, 0.0, -1.5], 'too far'),
+                     (stretched, 'singularities'), ([0.5, 0.0, -0.5], 'joint limit')):
+        with pytest.raises(UnreachableError, match=why):
+            joint_motion([bad], np.ones((1, 3)), np.zeros((1, 3)), GEOMETRY)
+        assert joint_speed_caps(np.vstack((points, bad)), np.ones((4, 3)), GEOMETRY,
+                                8.0) is None
+
+
+@pytest.mark.parametrize('low, high', [(-0.85, 1.95), (-3.0, 1.0), (0.3, 0.6)])
+def test_joint_speed_caps_judge_joint_limits_as_inverse_kinematics(low, high):
+    # Points on a fine grid through both limits of arm 0 (the default limits, limits the
+    # cross-product test cannot serve, close limits), in the order of their angles.
+    geometry = dataclasses.replace(GEOMETRY, joint_min=low, joint_max=high)
+    x = np.linspace(-0.6, 0.6, 241)
+    points = np.array([[value, 0.0, height] for value in x
+                       for height in np.linspace(-1.1, -0.3, 81)])
+    inside = reachable(points, geometry)
+    assert inside.any() and not inside.all()
+    for point, expected in zip(points, inside):
+        caps = joint_speed_caps(point[np.newaxis], np.zeros((1, 3)), geometry, 1.0)
+        assert (caps is not None) == expected
+
+
+@pytest.mark.parametrize('low, high', [(-0.85, 1.95), (-3.0, 1.0), (-1.0, math.pi)])
+def test_joint_limits_judged_from_cos_and_sin_as_from_the_angle(low, high):
+    limit_trig = _limit_trig(dataclasses.replace(GEOMETRY, joint_min=low, joint_max=high))
+    # Angles at, and a few rounding steps to a millionth of a radian either side of, each
+    # limit, and across the circle; cos and sin not quite of unit length, as IK gives them.
+    offsets = np.concatenate((-np.logspace(-16, -6, 41), [0.0], np.logspace(-16, -6, 41)))
+    angles = np.concatenate((low + offsets, high + offsets, np.linspace(-np.pi, np.pi, 721)))
+    for angle in angles:
+        for length in (1.0 - 1e-15, 1.0, 1.0 + 1e-15):
+            cos_q, sin_q = length * math.cos(angle), length * math.sin(angle)
+            q = math.atan2(sin_q, cos_q)
+            expected = not (q < low or q > high)
+            assert _inside_joint_limits(cos_q, sin_q, low, high, limit_trig) == expected

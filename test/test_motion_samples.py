@@ -19,7 +19,7 @@ import dataclasses
 from ellipath_ros.core.errors import EllipathError
 from ellipath_ros.core.geometry import plan_path
 from ellipath_ros.core.joint_trajectory import (
-    _distinct_samples, _interval_peaks, _nearest_samples, _NO_BOUNDS, _sample_peak_rows,
+    _distinct_samples, _interval_peaks, _nearest_samples, _NO_BOUNDS, _segments_beyond,
     executed_table, knots_at, MotionSamples, quintic_positions)
 from ellipath_ros.core.kinematics import forward_kinematics, inverse_kinematics, joint_motion
 from ellipath_ros.core.planner import _slowed_points, plan_transfer, PlannerConfig
@@ -111,11 +111,27 @@ def test_segment_peaks_are_the_largest_samples_of_each_interval():
                     np.abs(samples.qdot[inside]).max(), np.abs(samples.qddot[inside]).max()]
         np.testing.assert_allclose(peaks[index], expected, rtol=1e-12)
     # The compiled loop does what its plain-Python form does.
-    sample_peaks, interpreted = np.empty((samples.times.size, 5)), np.empty_like(peaks)
-    _sample_peak_rows.py_func(samples.velocity, samples.acceleration, samples.jerk,
-                              samples.qdot, samples.qddot, sample_peaks)
-    _interval_peaks.py_func(samples.times, sample_peaks, times, interpreted)
+    interpreted = np.empty_like(peaks)
+    _interval_peaks.py_func(*samples._peak_source(), times, interpreted)
     np.testing.assert_array_equal(peaks, interpreted)
+
+
+def test_segments_beyond_are_those_breaking_a_bound_beyond_the_planned_peak():
+    samples = MotionSamples.of(timed(), CONFIG.geometry)
+    times = np.linspace(0.0, samples.duration, 40)
+    peaks = samples.segment_peaks(times)
+    generator = np.random.default_rng(3)
+    for _ in range(20):
+        # Around the planned peaks and bounds, so that each comparison goes both ways.
+        table = peaks * generator.uniform(0.99, 1.01, peaks.shape)
+        bounds = peaks.max(axis=0) * generator.uniform(0.5, 1.1, 5)
+        expected = np.flatnonzero(((table > bounds) & (table > 1.001 * peaks)).any(axis=1))
+        beyond = samples.segments_beyond(times, table, bounds, 1.001)
+        np.testing.assert_array_equal(beyond, expected)
+        assert 0 < beyond.size < times.size - 1
+        np.testing.assert_array_equal(
+            _segments_beyond.py_func(*samples._peak_source(), times, table, bounds, 1.001),
+            expected)
 
 
 @pytest.mark.parametrize('config, pairs, least', [(CONFIG, 30, 20), (CURVATURE, 12, 8)])

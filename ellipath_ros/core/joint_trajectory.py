@@ -41,6 +41,7 @@ from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.errors import UnreachableError
 from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _kernel_geometry
+from ellipath_ros.core.kinematics import _row
 from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import tcp_derivatives
@@ -793,7 +794,7 @@ class MotionSamples:
             joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
         self.q, self.qdot, self.qddot = joints
         self._planned = None
-        self._sample_peaks = None
+        self._peak_arrays = None
 
     @classmethod
     def of(cls, motion, geometry):
@@ -837,16 +838,28 @@ class MotionSamples:
         jerk norm, joint speed and acceleration of the samples in the interval,
         both ends included.
         """
-        if self._sample_peaks is None:
-            # Per sample once, for every set of knots the search and its rounds ask about.
-            self._sample_peaks = np.empty((self.times.size, len(EXECUTED_KEYS)))
-            _sample_peak_rows(*(np.ascontiguousarray(values) for values in (
-                self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot)),
-                self._sample_peaks)
         peaks = np.empty((times.size - 1, len(EXECUTED_KEYS)))
-        _interval_peaks(self.times, self._sample_peaks, np.ascontiguousarray(times, dtype=float),
-                        peaks)
+        _interval_peaks(*self._peak_source(), np.ascontiguousarray(times, dtype=float), peaks)
         return peaks
+
+    def segments_beyond(self, times, table, bounds, share):
+        """
+        Return the intervals of ``times`` (K,) where ``table`` breaks a bound beyond the motion.
+
+        Their indices (sorted): those where, in one same quantity, ``table`` (K - 1, 5) exceeds
+        ``bounds`` (5,) and ``share`` times the planned peak of :meth:`segment_peaks`; the
+        planned peaks are read only where a bound is exceeded.
+        """
+        return _segments_beyond(*self._peak_source(), np.ascontiguousarray(times, dtype=float),
+                                np.ascontiguousarray(table, dtype=float),
+                                np.ascontiguousarray(bounds, dtype=float), share)
+
+    def _peak_source(self):
+        """Return the samples' times and the (N, 3) rates the planned peaks are of, C order."""
+        if self._peak_arrays is None:
+            self._peak_arrays = tuple(np.ascontiguousarray(values) for values in (
+                self.times, self.velocity, self.acceleration, self.jerk, self.qdot, self.qddot))
+        return self._peak_arrays
 
     def states(self, times, low=None, high=None):
         """
@@ -946,36 +959,69 @@ def _distinct_samples(times, position, velocity, same):
 
 
 @kernel
-def _interval_peaks(sample_times, sample_peaks, times, peaks):
+def _interval_peaks(sample_times, velocity, acceleration, jerk, qdot, qddot, times, peaks):
     """
     Fill ``peaks`` (K - 1, 5) with :meth:`MotionSamples.segment_peaks` on ``times`` (K,).
 
-    ``sample_peaks`` (N, 5) holds the quantities at each sample (:func:`_sample_peak_rows`).
-    Interval i takes the samples from the first at or after ``times[i]`` to the last at or
-    before ``times[i + 1]``, at least one (the one at its start, the last if none follows).
+    Of the samples at ``sample_times`` (N,) with TCP velocity, acceleration, jerk and joint
+    rates (N, 3) (:meth:`MotionSamples._peak_source`).
     """
-    count = sample_times.size
+    source = (sample_times, velocity, acceleration, jerk, qdot, qddot)
     for interval in range(times.size - 1):
-        first = np.searchsorted(sample_times, times[interval])
-        end = max(np.searchsorted(sample_times, times[interval + 1], side='right'), first + 1)
-        for key in range(5):
-            peaks[interval, key] = 0.0
-        for sample in range(first, end):
-            row = min(sample, count - 1)
-            for key in range(5):
-                peaks[interval, key] = max(peaks[interval, key], sample_peaks[row, key])
+        _interval_peak(source, times[interval], times[interval + 1], peaks, interval)
 
 
 @kernel
-def _sample_peak_rows(velocity, acceleration, jerk, qdot, qddot, out):
-    """Fill ``out`` (N, 5) with TCP speed, acceleration, jerk norm, largest |q_dot|, |q_ddot|."""
-    for row in range(out.shape[0]):
-        for key, vector in enumerate((velocity, acceleration, jerk)):
-            out[row, key] = math.sqrt(vector[row, 0] * vector[row, 0]
-                                      + vector[row, 1] * vector[row, 1]
-                                      + vector[row, 2] * vector[row, 2])
-        out[row, 3] = max(abs(qdot[row, 0]), abs(qdot[row, 1]), abs(qdot[row, 2]))
-        out[row, 4] = max(abs(qddot[row, 0]), abs(qddot[row, 1]), abs(qddot[row, 2]))
+def _segments_beyond(sample_times, velocity, acceleration, jerk, qdot, qddot, times, table,
+                     bounds, share):
+    """Return :meth:`MotionSamples.segments_beyond` (the samples as :func:`_interval_peaks`)."""
+    source = (sample_times, velocity, acceleration, jerk, qdot, qddot)
+    found = np.empty(table.shape[0], np.int64)
+    count = 0
+    peaks = np.empty((1, 5))
+    for segment in range(table.shape[0]):
+        beyond = False
+        for key in range(5):
+            beyond = beyond or table[segment, key] > bounds[key]
+        if not beyond:
+            continue
+        _interval_peak(source, times[segment], times[segment + 1], peaks, 0)
+        for key in range(5):
+            if table[segment, key] > bounds[key] and table[segment, key] > share * peaks[0, key]:
+                found[count] = segment
+                count += 1
+                break
+    return found[:count].copy()
+
+
+@kernel(inline=True)
+def _interval_peak(source, start, end, peaks, row):
+    """
+    Fill ``peaks[row]`` with the largest of each quantity of the samples from start to end.
+
+    The samples from the first at or after ``start`` to the last at or before ``end``, at
+    least one (the one at ``start``, the last if none follows); ``source`` holds the
+    arguments of :func:`_interval_peaks` that are the samples'.
+    """
+    sample_times, velocity, acceleration, jerk, qdot, qddot = source
+    count = sample_times.size
+    first = np.searchsorted(sample_times, start)
+    last = max(np.searchsorted(sample_times, end, side='right'), first + 1)
+    for key in range(5):
+        peaks[row, key] = 0.0
+    for sample in range(first, last):
+        at = min(sample, count - 1)
+        values = (_norm(_row(velocity, at)), _norm(_row(acceleration, at)),
+                  _norm(_row(jerk, at)), _largest_magnitude(_row(qdot, at)),
+                  _largest_magnitude(_row(qddot, at)))
+        for key in range(5):
+            peaks[row, key] = max(peaks[row, key], values[key])
+
+
+@kernel(inline=True)
+def _largest_magnitude(vector):
+    """Return the largest magnitude of the entries of a 3-tuple."""
+    return max(abs(vector[0]), abs(vector[1]), abs(vector[2]))
 
 
 @kernel(inline=True)

@@ -508,19 +508,35 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
     return q, qdot, qddot
 
 
-def assembled_joint_rates(points, velocities, geometry):
+def joint_speed_caps(points, directions, geometry, limit):
     """
-    Return :func:`joint_motion`'s ``(q, q_dot)`` of finite (N, 3) rows, or None if one fails.
+    Return ``limit / max_i |dq_i/ds|`` (N,) along (N, 3) unit ``directions``, or None.
 
-    Nothing is raised: a row out of reach, beyond a joint limit or at an IK
-    singularity gives None, for the caller to name it its own way.
+    ``dq/ds`` are the joint rates of :func:`joint_motion` at the finite (N, 3) ``points``
+    moving along ``directions`` at unit speed (the largest below 1e-12 counts as 1e-12).
+    Nothing is raised: a point out of reach, beyond a joint limit or at an IK singularity
+    gives None, for the caller to name it its own way. The joint angles themselves are not
+    computed: a point's limits are judged from cos q and sin q, with an ``atan2`` only near
+    a limit (:func:`_inside_joint_limits`).
     """
     points = np.ascontiguousarray(points, dtype=float)
-    q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
-    failed = _joint_rows(
-        points, np.ascontiguousarray(velocities, dtype=float), np.zeros(points.shape),
-        *_joint_geometry(geometry), q, qdot, qddot)[0]
-    return None if failed >= 0 else (q, qdot)
+    caps = np.empty(points.shape[0])
+    assembled = _speed_cap_rows(points, np.ascontiguousarray(directions, dtype=float),
+                                *_joint_geometry(geometry), _limit_trig(geometry),
+                                float(limit), caps)
+    return caps if assembled else None
+
+
+def _limit_trig(geometry):
+    """
+    Return the cosines and sines of the joint limits, and whether they may be used.
+
+    :func:`_inside_joint_limits` uses them only for limits inside (-pi, pi) less than pi
+    apart: then both cross products positive mean an angle strictly between them.
+    """
+    low, high = geometry.joint_min, geometry.joint_max
+    usable = -math.pi < low and high < math.pi and high - low < math.pi
+    return math.cos(low), math.sin(low), math.cos(high), math.sin(high), usable
 
 
 def _joint_geometry(geometry):
@@ -846,17 +862,24 @@ def _write_row(values, row, entries):
 @kernel(inline=True)
 def _ik_arm(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
     """Return (in the arm's sphere, cos q, sin q, q) of one arm of :func:`_ik_point`."""
+    inside, cos_q, sin_q = _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq)
+    if not inside:
+        return False, 0.0, 0.0, 0.0
+    return True, cos_q, sin_q, math.atan2(sin_q, cos_q)
+
+
+@kernel(inline=True)
+def _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
+    """Return (in the arm's sphere, cos q, sin q) of :func:`_ik_arm`, without q's atan2."""
     u = x * rx + y * ry + -offset
     w = x * tx + y * ty
     g = u * u + w * w + z * z + upper_sq - fore_sq
     discriminant = 4.0 * upper * upper * (u * u + z * z) - g * g
     if discriminant < 0.0:
-        return False, 0.0, 0.0, 0.0
+        return False, 0.0, 0.0
     root = math.sqrt(discriminant)
     scale = 1.0 / (2.0 * upper * (u * u + z * z))
-    cos_q = (u * g - z * root) * scale
-    sin_q = -(z * g + u * root) * scale
-    return True, cos_q, sin_q, math.atan2(sin_q, cos_q)
+    return True, (u * g - z * root) * scale, -(z * g + u * root) * scale
 
 
 @kernel(inline=True)
@@ -1032,3 +1055,70 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
         _write_row(qdot, row, rates[0])
         _write_row(qddot, row, rates[1])
     return -1, _IK_OK, 0, 0.0
+
+
+# An angle whose sines from both joint limits exceed this share of |cos q| + |sin q| is inside
+# the limits without its atan2: far beyond any rounding of the cross products (~1e-15).
+_LIMIT_TEST_MARGIN = 1e-9
+
+
+@kernel(inline=True)
+def _inside_joint_limits(cos_q, sin_q, joint_min, joint_max, limit_trig):
+    """
+    Return whether ``q = atan2(sin_q, cos_q)`` is within the limits, as :func:`_ik_point` says.
+
+    With usable ``limit_trig`` (:func:`_limit_trig`), an angle well inside (both
+    ``sin(q - joint_min)`` and ``sin(joint_max - q)``, times ``|(cos q, sin q)|``, above
+    ``_LIMIT_TEST_MARGIN``) is inside without its atan2; else q is computed and compared.
+    """
+    cos_min, sin_min, cos_max, sin_max, usable = limit_trig
+    margin = _LIMIT_TEST_MARGIN * (abs(cos_q) + abs(sin_q))
+    if (usable and sin_q * cos_min - cos_q * sin_min > margin
+            and sin_max * cos_q - cos_max * sin_q > margin):
+        return True
+    q = math.atan2(sin_q, cos_q)
+    return not (q < joint_min or q > joint_max)
+
+
+@kernel
+def _speed_cap_rows(points, directions, rx, ry, tx, ty, offset, upper, forearm, joint_min,
+                    joint_max, singular_diagonal, limit_trig, limit, caps):
+    """
+    Fill ``caps`` (N,) with :func:`joint_speed_caps`; return whether every row succeeds.
+
+    Stops at the first row out of reach (:func:`_ik_trig`), beyond a joint limit
+    (:func:`_inside_joint_limits`) or at an IK singularity (:func:`_rate_point`).
+    """
+    radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
+    zero = (0.0, 0.0, 0.0)
+    fore_sq, upper_sq = forearm * forearm, upper * upper
+    for row in range(points.shape[0]):
+        x, y, z = _row(points, row)
+        if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
+            return False
+        arms = (_capped_arm(x, y, z, radial_x[0], radial_y[0], tangent_x[0], tangent_y[0],
+                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig),
+                _capped_arm(x, y, z, radial_x[1], radial_y[1], tangent_x[1], tangent_y[1],
+                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig),
+                _capped_arm(x, y, z, radial_x[2], radial_y[2], tangent_x[2], tangent_y[2],
+                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig))
+        if not (arms[0][0] and arms[1][0] and arms[2][0]):
+            return False
+        arm, _, rates = _rate_point(
+            (x, y, z), _row(directions, row), zero, (arms[0][1], arms[1][1], arms[2][1]),
+            (arms[0][2], arms[1][2], arms[2][2]), radial_x, radial_y, offset, upper,
+            singular_diagonal, zero, False)
+        if arm >= 0:
+            return False
+        speed = rates[0]
+        caps[row] = limit / max(max(max(abs(speed[0]), abs(speed[1])), abs(speed[2])), 1e-12)
+    return True
+
+
+@kernel(inline=True)
+def _capped_arm(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq, joint_min,
+                joint_max, limit_trig):
+    """Return (in reach and within the joint limits, cos q, sin q) of one arm."""
+    inside, cos_q, sin_q = _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq)
+    return (inside and _inside_joint_limits(cos_q, sin_q, joint_min, joint_max, limit_trig),
+            cos_q, sin_q)

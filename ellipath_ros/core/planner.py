@@ -40,8 +40,8 @@ from .joint_trajectory import (
     JointTrajectoryData, MotionSamples, on_whole_nanoseconds, quintic_interpolate,
     quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    _ASSEMBLED, _forward_point, _kernel_geometry, assembled_joint_rates, DeltaGeometry,
-    forward_kinematics, inverse_kinematics, joint_velocities, JointLimits,
+    _ASSEMBLED, _forward_point, _kernel_geometry, DeltaGeometry, forward_kinematics,
+    inverse_kinematics, joint_speed_caps, joint_velocities, JointLimits,
     largest_magnitude_per_row)
 from .knots import minimal_knots, segment_deviations
 from .limits import CartesianLimits
@@ -396,16 +396,16 @@ def _check_reach_and_speed_cap(path, config):
     # The samples and, last, the apex (at rest: its rates are not used), in one pass.
     points, directions = np.empty((count + 1, 3)), np.zeros((count + 1, 3))
     points[:-1], points[-1], directions[:-1] = position.T, path.apex, tangent.T
-    rates = assembled_joint_rates(points, directions, config.geometry)
-    if rates is None:
+    limit = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity
+    caps = joint_speed_caps(points, directions, config.geometry, limit)
+    if caps is None:
         # Named as always: the first of the samples and the apex out of reach, else the first
         # sample at a singularity.
         q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
         dq_ds = joint_velocities(points[:-1], q, directions[:-1], config.geometry)
+        caps = limit / np.maximum(largest_magnitude_per_row(dq_ds), 1e-12)
     else:
-        dq_ds = rates[1][:-1]
-    caps = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity / np.maximum(
-        largest_magnitude_per_row(dq_ds), 1e-12)
+        caps = caps[:-1]
 
     def cap(query):
         return np.interp(query, s, caps)
@@ -790,8 +790,7 @@ def _joint_points(motion, config, bounds, samples=None):
     for _ in range(_KNOT_ROUNDS):
         times = trajectory.time_from_start
         # Points mend what the quintic adds to the motion, not what the motion itself has.
-        broken = np.flatnonzero(((table > bounds) & (
-            table > (1.0 + _QUINTIC_EXCESS) * samples.segment_peaks(times))).any(axis=1))
+        broken = samples.segments_beyond(times, table, bounds, 1.0 + _QUINTIC_EXCESS)
         if broken.size == 0:
             break
         if steps is None:
