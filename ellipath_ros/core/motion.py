@@ -999,6 +999,13 @@ def _refined_peaks(t, pieces, norms, peaks):
     between samples is then missed by a term of third order in the sample
     spacing instead of second (none for the speed, a quadratic within a piece),
     also where it lies between a piece's last two samples.
+
+    A triple that cannot raise the largest value is skipped before its divisions: the
+    vertex that passes the checks below lies within the longer gap of the middle sample,
+    where the parabola's slope is at most (M - m) / the shorter gap (M and m the
+    triple's largest and smallest value), so it is at most (M - m) (longer gap) / (2
+    shorter gap) <= 2 (M - m) above the middle sample; a triple with M + 3 (M - m) below
+    the largest value (the norms are >= 0; the rest is room for rounding) never raises it.
     """
     count = t.size
     for row in range(3):
@@ -1008,6 +1015,10 @@ def _refined_peaks(t, pieces, norms, peaks):
             best = max(best, values[index])
         for index in range(1, count - 1):
             here = values[index]
+            highest = max(values[index - 1], here, values[index + 1])
+            lowest = min(values[index - 1], here, values[index + 1])
+            if (highest + 3.0 * (highest - lowest)) * (1.0 + 1e-12) < best:
+                continue
             if pieces[index - 1] != pieces[index] or pieces[index + 1] != pieces[index]:
                 continue
             h_1, h_2 = t[index] - t[index - 1], t[index + 1] - t[index]
