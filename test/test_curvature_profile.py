@@ -19,9 +19,10 @@ import dataclasses
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import motion as motion_module
 from ellipath_ros.core.curvature_profile import (
-    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, _CurvatureSequence, _trapezoid_lengths,
-    curvature_nodes)
-from ellipath_ros.core.geometry import EllipticArc, plan_path, radius_of_curvature_derivatives
+    _arc_cartesian_peaks, _cap_rate, _CurvatureArcLaw, _CurvatureSequence, _rule_peaks,
+    _trapezoid_lengths, curvature_nodes)
+from ellipath_ros.core.geometry import (arc_for_policy, ArcPolicy, EllipticArc, plan_path,
+                                        radius_of_curvature_derivatives)
 from ellipath_ros.core.planner import _check_reach_and_speed_cap, PlannerConfig
 from ellipath_ros.core.timing import time_motion
 import numpy as np
@@ -148,6 +149,30 @@ def test_compiled_peaks_are_numpys_to_rounding(l_, h, k):
     sigma, sigma_1, _ = arc.sigma(theta)
     np.testing.assert_allclose(found[3], sigma, rtol=1e-15)
     np.testing.assert_allclose(found[4], sigma_1, rtol=1e-12, atol=1e-15)
+
+
+def test_screened_peaks_are_the_exact_ones_bit_for_bit():
+    """
+    K depends on the peaks: screening the samples must find the exact samples' maxima.
+
+    The profile's grid on the test arcs and on random ones of every arc policy (round,
+    thin, steep), also where its first sample is the largest (T1 on a steep arc).
+    """
+    rng = np.random.default_rng(17)
+    arcs = [EllipticArc(*values) for values in ARCS]
+    for kind in ('paper', 'apex_clearance', 'min_radius'):
+        for _ in range(20):
+            half_width = 10.0 ** rng.uniform(-1.7, -0.3)
+            arcs.append(arc_for_policy(half_width, rng.uniform(-1.0, 1.0) * half_width,
+                                       ArcPolicy(kind=kind, apex_clearance=0.05,
+                                                 min_radius=0.002)))
+    for arc in arcs:
+        theta = np.linspace(arc.theta_T1, arc.theta_T2, 4001)
+        exact = _arc_cartesian_peaks(arc, theta)
+        peaks, rows = _rule_peaks(arc, theta)
+        assert peaks.tolist() == [*exact[:3].max(axis=1), exact[0, 0]]
+        assert np.array_equal(rows[1:], exact[3:])
+        np.testing.assert_allclose(rows[0], exact[0], rtol=1e-14, atol=0.0)
 
 
 @pytest.mark.parametrize('cap_name', ['falling', 'dip', 'constant'])

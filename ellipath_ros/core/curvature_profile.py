@@ -67,8 +67,13 @@ _BASELINE_SAMPLES = 4001
 # Near the tightest points, bounds of the states' interpolation panels at this share of
 # their distance to the nearest pole of 1/sigma (see _CurvatureArcLaw._hermite_table).
 _POLE_STEP = 0.05
-# Samples whose speed-cap ratio is within this share of the smallest get their exact arc length.
+# Samples whose speed-cap ratio is within this share of the smallest get their exact arc length
+# and speed.
 _CAP_SHORTLIST = 1e-6
+# Samples of the rule whose screened |v|, |a| or |j| is within this share of the largest get
+# their exact values (see _screened_peaks: screened and exact differ by 1.5e-15 of the peak
+# at most on 5,127 random arcs of the three arc policies).
+_PEAK_SHORTLIST = 1e-9
 # Columns of a panel's row of the states' table (see _panel_polynomials).
 _PANEL_COLUMNS = 20
 
@@ -527,7 +532,7 @@ def _arc_cartesian_peaks(arc, theta):
     """
     Return |v|, |a|, |j| of the rule with K = 1 at ``theta`` (paper frame), and sigma, sigma'.
 
-    Each (N,); computed as NumPy computes the same formulas (see :func:`_rule_norms`).
+    Each (N,); computed as NumPy computes the same formulas (see :func:`_rule_sample`).
     """
     out = np.empty((5, theta.size))
     _rule_norms(np.ascontiguousarray(theta, dtype=float), arc.a, arc.b, arc.l, arc.h, arc.k,
@@ -535,44 +540,105 @@ def _arc_cartesian_peaks(arc, theta):
     return out
 
 
+def _rule_peaks(arc, theta):
+    """
+    Return the largest |v|, |a|, |j| of the rule with K = 1 at ``theta``, and more rows.
+
+    The peaks (4,), and |v| at ``theta[0]`` last, are :func:`_arc_cartesian_peaks`' bit for
+    bit (:func:`_screened_peaks`); the rows (3, N) are |v| within rounding (to shortlist
+    by), sigma and sigma' (exact).
+    """
+    peaks, rows = np.empty(4), np.empty((3, theta.size))
+    _screened_peaks(np.ascontiguousarray(theta, dtype=float), arc.a, arc.b, arc.l, arc.h,
+                    arc.k, arc.theta_T2, peaks, rows)
+    return peaks, rows
+
+
 @kernel
 def _rule_norms(theta, a, b, l_, h, k, theta_t2, out):
-    """
-    Fill ``out`` (5, N) with |v|, |a|, |j| of the rule with K = 1, sigma and sigma' at ``theta``.
-
-    theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1;
-    d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre). The
-    operations are those of ``geometry.radius_of_curvature_derivatives``,
-    ``EllipticArc.point`` and ``derivative`` and ``numpy.linalg.norm``, in their
-    order, with libm's sin, cos and pow: the same numbers bit for bit.
-    """
-    spread, ab = a * a - b * b, a * b
+    """Fill ``out`` (5, N) with :func:`_rule_sample` at each of ``theta`` (N,), exactly."""
     for index in range(theta.size):
         angle = theta[index]
-        sin_theta, cos_theta = math.sin(angle), math.cos(angle)
-        sigma = math.sqrt(a * a * math.pow(sin_theta, 2.0) + b * b * math.pow(cos_theta, 2.0))
-        sigma_1 = spread * sin_theta * cos_theta / sigma
-        sigma_2 = (spread * (math.pow(cos_theta, 2.0) - math.pow(sin_theta, 2.0))
-                   - math.pow(sigma_1, 2.0)) / sigma
-        rho = math.pow(sigma, 3.0) / ab
-        rho_1 = 3.0 * math.pow(sigma, 2.0) * sigma_1 / ab
-        rho_2 = (6.0 * sigma * math.pow(sigma_1, 2.0) + 3.0 * math.pow(sigma, 2.0) * sigma_2) / ab
-        w1, w2 = -rho, rho * rho_1
-        w3 = -rho * (math.pow(rho_1, 2.0) + rho * rho_2)
         t = angle - theta_t2
-        sin_t, cos_t = math.sin(t), math.cos(t)
-        px, py = l_ * cos_t, h * cos_t + k * sin_t
-        dx, dy = -l_ * sin_t, -h * sin_t + k * cos_t
-        vx, vy = dx * w1, dy * w1
-        square, cube, product = math.pow(w1, 2.0), math.pow(w1, 3.0), w1 * w2
-        ax, ay = -px * square + dx * w2, -py * square + dy * w2
-        jx = -dx * cube - 3.0 * px * product + dx * w3
-        jy = -dy * cube - 3.0 * py * product + dy * w3
-        out[0, index] = math.sqrt(vx * vx + vy * vy)
-        out[1, index] = math.sqrt(ax * ax + ay * ay)
-        out[2, index] = math.sqrt(jx * jx + jy * jy)
-        out[3, index] = sigma
-        out[4, index] = sigma_1
+        (out[0, index], out[1, index], out[2, index], out[3, index],
+         out[4, index]) = _rule_sample(math.sin(angle), math.cos(angle), math.sin(t),
+                                       math.cos(t), a, b, l_, h, k, True)
+
+
+@kernel
+def _screened_peaks(theta, a, b, l_, h, k, theta_t2, peaks, rows):
+    """
+    Fill ``peaks`` (4,) with the largest |v|, |a|, |j| at ``theta`` (N,) and |v| at its first.
+
+    All as :func:`_rule_norms` gives them, at under half its cost: every sample is screened
+    with products for libm's pow (x * x * x) and the sine and cosine of the paper frame's
+    parameter t = theta - theta_T2 from theta's (a few units in the last place apart; the
+    two pow calls cost more than the rest of a sample), and only the first and those within
+    ``_PEAK_SHORTLIST`` of a screened peak are computed exactly: the exact peak's sample is
+    among them. ``rows`` (3, N) gets the screened |v|, and sigma and sigma' (exact: the
+    same operations either way).
+    """
+    sin_end, cos_end = math.sin(theta_t2), math.cos(theta_t2)
+    screened = np.empty((3, theta.size))
+    for index in range(theta.size):
+        sin_theta, cos_theta = math.sin(theta[index]), math.cos(theta[index])
+        (screened[0, index], screened[1, index], screened[2, index], rows[1, index],
+         rows[2, index]) = _rule_sample(
+            sin_theta, cos_theta, sin_theta * cos_end - cos_theta * sin_end,
+            cos_theta * cos_end + sin_theta * sin_end, a, b, l_, h, k, False)
+    bars = np.empty(3)
+    for row in range(3):
+        bars[row] = screened[row].max() * (1.0 - _PEAK_SHORTLIST)
+    peaks[:] = 0.0
+    for index in range(theta.size):
+        rows[0, index] = screened[0, index]
+        if (index > 0 and screened[0, index] < bars[0] and screened[1, index] < bars[1]
+                and screened[2, index] < bars[2]):
+            continue
+        angle = theta[index]
+        t = angle - theta_t2
+        speed, accel, jerk, _, _ = _rule_sample(math.sin(angle), math.cos(angle), math.sin(t),
+                                                math.cos(t), a, b, l_, h, k, True)
+        if index == 0:
+            peaks[3] = speed
+        peaks[0], peaks[1], peaks[2] = (max(peaks[0], speed), max(peaks[1], accel),
+                                        max(peaks[2], jerk))
+
+
+@kernel(inline=True)
+def _rule_sample(sin_theta, cos_theta, sin_t, cos_t, a, b, l_, h, k, exact):
+    """
+    Return |v|, |a|, |j| of the rule with K = 1, sigma and sigma' at one theta.
+
+    Given the sine and cosine of theta and of the paper frame's t = theta - theta_T2.
+
+    theta' = -rho, theta'' = rho rho_1, theta''' = -rho (rho_1**2 + rho rho_2) for K = 1;
+    d2P/dtheta2 = -P and d3P/dtheta3 = -dP/dtheta (ellipse about its centre). With
+    ``exact``, the operations are those of ``geometry.radius_of_curvature_derivatives``,
+    ``EllipticArc.point`` and ``derivative`` and ``numpy.linalg.norm``, in their order, with
+    libm's sin, cos and pow: the same numbers bit for bit; without, the two cubes are
+    products.
+    """
+    spread, ab = a * a - b * b, a * b
+    sigma = math.sqrt(a * a * math.pow(sin_theta, 2.0) + b * b * math.pow(cos_theta, 2.0))
+    sigma_1 = spread * sin_theta * cos_theta / sigma
+    sigma_2 = (spread * (math.pow(cos_theta, 2.0) - math.pow(sin_theta, 2.0))
+               - math.pow(sigma_1, 2.0)) / sigma
+    rho = (math.pow(sigma, 3.0) if exact else sigma * sigma * sigma) / ab
+    rho_1 = 3.0 * math.pow(sigma, 2.0) * sigma_1 / ab
+    rho_2 = (6.0 * sigma * math.pow(sigma_1, 2.0) + 3.0 * math.pow(sigma, 2.0) * sigma_2) / ab
+    w1, w2 = -rho, rho * rho_1
+    w3 = -rho * (math.pow(rho_1, 2.0) + rho * rho_2)
+    px, py = l_ * cos_t, h * cos_t + k * sin_t
+    dx, dy = -l_ * sin_t, -h * sin_t + k * cos_t
+    vx, vy = dx * w1, dy * w1
+    square, product = math.pow(w1, 2.0), w1 * w2
+    cube = math.pow(w1, 3.0) if exact else w1 * w1 * w1
+    ax, ay = -px * square + dx * w2, -py * square + dy * w2
+    jx = -dx * cube - 3.0 * px * product + dx * w3
+    jy = -dy * cube - 3.0 * py * product + dy * w3
+    return (math.sqrt(vx * vx + vy * vy), math.sqrt(ax * ax + ay * ay),
+            math.sqrt(jx * jx + jy * jy), sigma, sigma_1)
 
 
 def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
@@ -581,18 +647,20 @@ def _cap_rate(path, speed_cap, theta, speed, sigma, sigma_1):
 
     The arc length of every sample by quadrature (``s_from_t``) would cost more than
     the rest of the profile: the corrected trapezoid rule on the samples' own sigma
-    and sigma' (error ~h**4, far below 1e-9 m) shortlists the samples within
-    ``_CAP_SHORTLIST`` of the smallest ratio, and only those are computed exactly, so
-    the result is the exact minimum, the same number as over all samples.
+    and sigma' (error ~h**4, far below 1e-9 m) and ``speed`` (the rule's |v| at K = 1,
+    within rounding: :func:`_rule_peaks`) shortlist the samples within
+    ``_CAP_SHORTLIST`` of the smallest ratio, and only those are computed exactly (their
+    arc length and |v|, :func:`_arc_cartesian_peaks`), so the result is the exact minimum,
+    the same number as over all samples.
     """
     arc = path.arc
     c1 = path.segment_lengths[0]
     lengths = np.empty(theta.size)
     _trapezoid_lengths(theta, sigma, sigma_1, c1, lengths)
     ratio = _cap_values(speed_cap, lengths) / speed
-    shortlist = np.flatnonzero(ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST))
-    s = c1 + arc.s_from_t(arc.t_from_theta(theta[shortlist]))
-    return float(np.min(_cap_values(speed_cap, s) / speed[shortlist]))
+    shortlist = theta[ratio <= ratio.min() * (1.0 + _CAP_SHORTLIST)]
+    s = c1 + arc.s_from_t(arc.t_from_theta(shortlist))
+    return float(np.min(_cap_values(speed_cap, s) / _arc_cartesian_peaks(arc, shortlist)[0]))
 
 
 @kernel
@@ -649,16 +717,17 @@ def _curvature_motion(path, limits, r, speed_cap):
     # The tightest point (theta = 0 mod pi) is sampled exactly.
     theta = np.linspace(arc.theta_T1, arc.theta_T2, _BASELINE_SAMPLES)
     theta = np.sort(np.append(theta, math.pi * math.ceil(arc.theta_T2 / math.pi)))[::-1]
-    speed, accel, jerk, sigma, sigma_1 = _arc_cartesian_peaks(arc, theta)
-    rate = min(limits.max_speed * _SPEED_MARGIN / speed.max(),
-               math.sqrt(limits.max_accel * _ACCEL_MARGIN / accel.max()),
-               (limits.max_jerk * _JERK_MARGIN / jerk.max()) ** (1.0 / 3.0))
+    (peak_speed, peak_accel, peak_jerk, first_speed), (speed, sigma, sigma_1) = _rule_peaks(
+        arc, theta)
+    rate = min(limits.max_speed * _SPEED_MARGIN / peak_speed,
+               math.sqrt(limits.max_accel * _ACCEL_MARGIN / peak_accel),
+               (limits.max_jerk * _JERK_MARGIN / peak_jerk) ** (1.0 / 3.0))
     if speed_cap is not None:
         rate = min(rate, _SPEED_MARGIN * _cap_rate(path, speed_cap, theta, speed, sigma,
                                                    sigma_1))
     # Step at T1/T2: s'**2 / rho_T <= max_accel_jump, s' = K u_T (same u at both ends). When
     # that would slow the whole arc down, the arc starts and ends at rest (ramps) instead.
-    ramps = math.sqrt(limits.max_accel_jump * arc.end_radius) / speed[0] < rate
+    ramps = math.sqrt(limits.max_accel_jump * arc.end_radius) / first_speed < rate
     # The entry and exit states scale with K: shrink it until the lines (or ramps) fit.
     groups = None
     for _ in range(40):

@@ -299,8 +299,10 @@ def _blend_shape(u):
 def _offset_at(l_, span_1, span_2, t):
     """Return the transitions' horizontal offset delta and its derivatives by t at ``t``."""
     delta, delta_1, delta_2, delta_3 = 0.0, 0.0, 0.0, 0.0
-    # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2.
-    if span_1 > 0.0:
+    # d/dt = -(1/span) d/du near T1 (u grows as t falls), +(1/span) d/du near T2. Outside a
+    # transition no division: x >= span > 0 gives x / span >= 1 (the quotient is rounded
+    # monotonically), so u < 1 needs x < span.
+    if span_1 > 0.0 and math.pi - t < span_1:
         u = (math.pi - t) / span_1
         if u < 1.0:
             f, f1, f2, f3 = _blend_shape(u)
@@ -308,7 +310,7 @@ def _offset_at(l_, span_1, span_2, t):
             delta_1 = l_ * span_1 * f1
             delta_2 = -l_ * f2
             delta_3 = l_ * f3 / span_1
-    if span_2 > 0.0:
+    if span_2 > 0.0 and t < span_2:
         u = t / span_2
         if u < 1.0:
             f, f1, f2, f3 = _blend_shape(u)

@@ -123,19 +123,35 @@ class _PieceList:
 
     def __init__(self):
         self.blocks = []
+        self.offsets = []
 
     def extend(self, rows, s_offset=0.0):
         """Append ``rows`` ((K, 5) or a sequence of such rows), s + ``s_offset``, none empty."""
-        # One array per call, not a Python call per row: a scan's rows are hundreds of pieces.
-        block = np.array(rows, dtype=float).reshape(-1, 5)
-        block = block[block[:, 0] > 0.0]
-        block[:, 1] += s_offset
-        self.blocks.append(block)
+        # Read by law(), in one array: a Python call per row (a scan's rows are hundreds of
+        # pieces), or NumPy's per block, would cost more than the arithmetic.
+        self.blocks.append(np.asarray(rows, dtype=float).reshape(-1, 5))
+        self.offsets.append(s_offset)
 
     def law(self):
-        rows = np.concatenate(self.blocks) if self.blocks else np.empty((0, 5))
-        times = np.concatenate(([0.0], np.cumsum(rows[:, 0])))
-        return _JerkPieces(times, rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4])
+        """Return the pieces so far as a law, without those of no duration."""
+        if not self.blocks:
+            return _pieces_of(np.empty((0, 5)))
+        rows = np.concatenate(self.blocks)
+        start = 0
+        for block, offset in zip(self.blocks, self.offsets):
+            rows[start:start + block.shape[0], 1] += offset
+            start += block.shape[0]
+        lasting = rows[:, 0] > 0.0
+        # Selecting rows costs more than the rest: only where a piece has no duration.
+        return _pieces_of(rows if lasting.all() else rows[lasting])
+
+
+def _pieces_of(rows):
+    """Return the :class:`_JerkPieces` of ``rows`` (K, 5): duration, s, v, a, j of each piece."""
+    times = np.empty(rows.shape[0] + 1)
+    times[0] = 0.0
+    np.cumsum(rows[:, 0], out=times[1:])
+    return _JerkPieces(times, rows[:, 1], rows[:, 2], rows[:, 3], rows[:, 4])
 
 
 def _piece_sample_times(bounds, count):
@@ -363,8 +379,11 @@ class TimedMotion:
         duration = require_range('duration', self.duration, 0.0, math.inf, low_open=True,
                                  unit='s')
         segments = np.asarray(self.segment_durations, dtype=float)
-        if (segments.shape != (3,) or not np.all(np.isfinite(segments))
-                or np.any(segments < 0.0) or abs(segments.sum() - duration) > 1e-9 * duration):
+        # On floats: NumPy's calls on three numbers cost more than the checks (the sum of
+        # three is NumPy's, in order).
+        values = segments.tolist() if segments.shape == (3,) else None
+        if (values is None or not all(0.0 <= value < math.inf for value in values)
+                or abs(values[0] + values[1] + values[2] - duration) > 1e-9 * duration):
             raise InvalidInputError(
                 f'segment_durations: expected 3 non-negative times summing to the duration '
                 f'{duration:.9g} s, got {segments.tolist()}')
@@ -980,6 +999,13 @@ def _refined_peaks(t, pieces, norms, peaks):
     between samples is then missed by a term of third order in the sample
     spacing instead of second (none for the speed, a quadratic within a piece),
     also where it lies between a piece's last two samples.
+
+    A triple that cannot raise the largest value is skipped before its divisions: the
+    vertex that passes the checks below lies within the longer gap of the middle sample,
+    where the parabola's slope is at most (M - m) / the shorter gap (M and m the
+    triple's largest and smallest value), so it is at most (M - m) (longer gap) / (2
+    shorter gap) <= 2 (M - m) above the middle sample; a triple with M + 3 (M - m) below
+    the largest value (the norms are >= 0; the rest is room for rounding) never raises it.
     """
     count = t.size
     for row in range(3):
@@ -989,6 +1015,10 @@ def _refined_peaks(t, pieces, norms, peaks):
             best = max(best, values[index])
         for index in range(1, count - 1):
             here = values[index]
+            highest = max(values[index - 1], here, values[index + 1])
+            lowest = min(values[index - 1], here, values[index + 1])
+            if (highest + 3.0 * (highest - lowest)) * (1.0 + 1e-12) < best:
+                continue
             if pieces[index - 1] != pieces[index] or pieces[index + 1] != pieces[index]:
                 continue
             h_1, h_2 = t[index] - t[index - 1], t[index + 1] - t[index]
