@@ -323,6 +323,50 @@ def test_cap_stairs_are_the_lowest_cap_each_stair_spans():
     assert cells[8] == 0.999 * values[8:17].min() and np.isfinite(cells).all()
 
 
+def _valley_index_by_numpy(ceiling, grid_step, forward_end, backward_end, length, s_a, s_b):
+    """Return the valley's grid index, or -1, as NumPy found it before the kernel (reference)."""
+    margin = 4 * grid_step
+    ends = sorted((forward_end, length - backward_end))
+    low = int(max(ends[0] - optimal_profile._VALLEY_REACH, s_a + margin) / grid_step)
+    high = int(min(ends[1] + optimal_profile._VALLEY_REACH, s_b - margin) / grid_step) + 1
+    if high - low < 3:
+        return -1
+    index = low + int(np.argmin(ceiling[low:high]))
+    lowest = ceiling[index]
+    if lowest < ceiling[low] * (1.0 - 1e-9) and lowest < ceiling[high - 1] * (1.0 - 1e-9):
+        return index
+    return -1
+
+
+def test_the_valley_kernel_finds_numpys_valley():
+    # Random ceilings with runs of equal values (argmin's first of equals), every other one
+    # sorted (its lowest at an end: no valley), a NaN now and then (argmin's first NaN), scans
+    # stopped anywhere in random stretches: the kernel's index against NumPy's form, on both
+    # the kernel and its plain form.
+    rng = np.random.default_rng(11)
+    length, points = 0.4, 2049
+    grid_step = length / (points - 1)
+    found = 0
+    for trial in range(400):
+        ceiling = np.round(rng.uniform(0.3, 2.0, points), 1)
+        if trial % 2:
+            ceiling = np.sort(ceiling)[::-1] if trial % 4 == 1 else np.sort(ceiling)
+        if trial % 7 == 0:
+            ceiling[rng.integers(points)] = math.nan
+        s_a, s_b = np.sort(rng.uniform(0.0, length, 2))
+        forward, backward = np.zeros((6, 3)), np.zeros((6, 2))
+        forward[1, 2] = rng.uniform(s_a, s_b)
+        backward[1, 1] = length - rng.uniform(s_a, s_b)
+        expected = _valley_index_by_numpy(ceiling, grid_step, forward[1, 2], backward[1, 1],
+                                          length, s_a, s_b)
+        for valley_index in (optimal_profile._valley_index,
+                             optimal_profile._valley_index.py_func):
+            assert valley_index(ceiling, grid_step, forward, 3, backward, 2, length, s_a,
+                                s_b) == expected
+        found += expected >= 0
+    assert 100 < found < 300
+
+
 def _until_level_off_one_by_one(v, a, jerk, h, speed, level):
     """Return the level-off time by 40 bisections one after another (the plain reference)."""
     low, high, twice_level = 0.0, h, 2.0 * level

@@ -140,6 +140,7 @@ class _ArcPlanner:
             values = np.array(_cap_values(speed_cap, path.segment_lengths[0] + grid))
             _cap_stairs(values, _SPEED_MARGIN, _CAP_STAIR, cells)
         self.grid = grid
+        self._grid_step = float(grid[1])
         forward, backward = _arc_tables(kappa, kappa_s, cells)
         cell = self.length / (len(kappa) - 1)
         budget = np.array([_STEP_BUDGET])
@@ -339,12 +340,15 @@ class _ArcPlanner:
                       _JOIN_ROOM_STEPS) == _OUT_OF_STEPS:
             raise _NoMotion()
         joined = self._join(forward, backward)
-        if joined is None:
+        # Scans that both stopped take no more step (nor spend the budget): the join would
+        # fail as it did.
+        if joined is None and (forward.info[_STATUS] == _LIVE
+                               or backward.info[_STATUS] == _LIVE):
             counts = forward.count, backward.count
             if _scan_both(*scanners, forward.parts(), backward.parts(), length, False,
                           _JOIN_ROOM_MORE) == _OUT_OF_STEPS:
                 raise _NoMotion()
-            # Scans that had stopped took no step (the join would fail as it did).
+            # A scan that stopped took no step (the join would fail as it did).
             if (forward.count, backward.count) != counts:
                 joined = self._join(forward, backward)
         if joined is not None:
@@ -360,8 +364,9 @@ class _ArcPlanner:
             end = backward.state(time)
             if end[1] <= state_a[0] * (1.0 + 1e-9):
                 return backward.reversed_rows(time, length), (end[1], -end[2]), state_b
-        index = self._valley_index(forward, backward, s_a, s_b)
-        if index is not None and depth < _VALLEY_DEPTH:
+        index = _valley_index(self.ceiling, self._grid_step, forward.states, forward.count,
+                              backward.states, backward.count, length, s_a, s_b)
+        if index >= 0 and depth < _VALLEY_DEPTH:
             # The scans are done with here: the parts' scanners hand them out again (the left
             # part's from s_a, the right part's from s_b; see _Scanner.scan).
             return self._split(index, s_a, state_a, s_b, state_b, free_a, free_b, depth)
@@ -374,27 +379,6 @@ class _ArcPlanner:
         if failed_a or failed_b:
             raise _EndTooFast(failed_a)
         raise _NoMotion()
-
-    def _valley_index(self, forward, backward, s_a, s_b):
-        """
-        Return the grid index of the lowest ceiling between where the scans stopped, or None.
-
-        Only a true valley counts: lower than the ceiling at both ends of the
-        stretch searched (which reaches ``_VALLEY_REACH`` beyond the scans' ends).
-        """
-        grid_step = self.grid[1]
-        margin = 4 * grid_step
-        ends = sorted((forward.last()[1], self.length - backward.last()[1]))
-        low = int(max(ends[0] - _VALLEY_REACH, s_a + margin) / grid_step)
-        high = int(min(ends[1] + _VALLEY_REACH, s_b - margin) / grid_step) + 1
-        if high - low < 3:
-            return None
-        index = low + int(np.argmin(self.ceiling[low:high]))
-        lowest = self.ceiling[index]
-        if lowest < self.ceiling[low] * (1.0 - 1e-9) and lowest < self.ceiling[high - 1] * (
-                1.0 - 1e-9):
-            return index
-        return None
 
     def _split(self, index, s_a, state_a, s_b, state_b, free_a, free_b, depth):
         """
@@ -506,6 +490,38 @@ def _probe_scan(table, constants, speed, accel, reach, steps):
     count = info[_COUNT]
     time = _time_at(states, count, reach)
     return True, time, _state(states, count, time)[1], states, info
+
+
+@kernel
+def _valley_index(ceiling, grid_step, forward, forward_count, backward, backward_count,
+                  length, s_a, s_b):
+    """
+    Return the grid index of the lowest ceiling between where the scans stopped, or -1.
+
+    Only a true valley counts: lower than the ``ceiling`` (M,) at both ends
+    of the stretch searched, which reaches ``_VALLEY_REACH`` beyond the
+    scans' ends (``forward`` and ``backward`` hold the scans' states, the
+    first ``*_count``) and stays 4 grid steps [m] inside [s_a, s_b].
+    Of equal lowest values the first (``numpy.argmin``'s choice).
+    """
+    margin = 4 * grid_step
+    end_a, end_b = forward[1, forward_count - 1], length - backward[1, backward_count - 1]
+    if end_b < end_a:
+        end_a, end_b = end_b, end_a
+    low = int(_py_max(end_a - _VALLEY_REACH, s_a + margin) / grid_step)
+    high = int(_py_min(end_b + _VALLEY_REACH, s_b - margin) / grid_step) + 1
+    if high - low < 3:
+        return -1
+    index = low
+    for here in range(low + 1, high):
+        if ceiling[index] != ceiling[index]:
+            break
+        if ceiling[here] < ceiling[index] or ceiling[here] != ceiling[here]:
+            index = here
+    lowest = ceiling[index]
+    if lowest < ceiling[low] * (1.0 - 1e-9) and lowest < ceiling[high - 1] * (1.0 - 1e-9):
+        return index
+    return -1
 
 
 @kernel
