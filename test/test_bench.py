@@ -36,6 +36,7 @@ from ellipath_ros.bench.latency import MIN_HORIZONTAL_OFFSET
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.bench.latency import WORKSPACE_RADIUS
 from ellipath_ros.bench.latency import WORKSPACE_Z
+from ellipath_ros.malloc_policy import MALLOC_ENVIRONMENT
 import numba
 import numpy as np
 import pytest
@@ -109,6 +110,14 @@ def test_latencies_are_ordered_and_counted(report):
     assert from_pick['n'] == latency['e2e_ms']['n']
     assert from_pick['p50'] >= latency['e2e_ms']['p50'] + PICK_LEAD * 1e3
     assert 0 <= e2e['approach_preplanned'] <= latency['e2e_ms']['n']
+
+
+def test_the_bench_plans_under_the_nodes_malloc_policy(report, ros_env):
+    result, _ = report
+    # As ellipath_node: set on glibc unless the environment chose a policy of its own.
+    chosen = any(name in ros_env for name in MALLOC_ENVIRONMENT)
+    glibc = platform.libc_ver()[0] == 'glibc'
+    assert result['latency_notes']['node_malloc_policy'] is (glibc and not chosen)
 
 
 def test_executed_peaks_are_ratios_to_the_limits(report):
