@@ -26,8 +26,10 @@ from ellipath_ros.core.kinematics import DeltaGeometry
 from ellipath_ros.core.kinematics import forward_kinematics
 from ellipath_ros.core.kinematics import inverse_kinematics
 from ellipath_ros.core.kinematics import joint_accelerations
+from ellipath_ros.core.kinematics import joint_angles
 from ellipath_ros.core.kinematics import joint_motion
 from ellipath_ros.core.kinematics import joint_speed_caps
+from ellipath_ros.core.kinematics import joint_trig_motion
 from ellipath_ros.core.kinematics import joint_velocities
 from ellipath_ros.core.kinematics import JointLimits
 from ellipath_ros.core.kinematics import reachable
@@ -348,6 +350,29 @@ def test_joint_speed_caps_judge_joint_limits_as_inverse_kinematics(low, high):
     for point, expected in zip(points, inside):
         caps = joint_speed_caps(point[np.newaxis], np.zeros((1, 3)), geometry, 1.0)
         assert (caps is not None) == expected
+
+
+@pytest.mark.parametrize('low, high', [(-0.85, 1.95), (-3.0, 1.0), (0.3, 0.6)])
+def test_joint_trig_motion_gives_the_angles_and_errors_of_inverse_kinematics(low, high):
+    # On a grid through both limits of arm 0, where joint_trig_motion judges the limits
+    # without the angles: the angles from its cos q and sin q bit for bit, or the same error.
+    geometry = dataclasses.replace(GEOMETRY, joint_min=low, joint_max=high)
+    points = np.array([[value, 0.0, height] for value in np.linspace(-0.6, 0.6, 61)
+                       for height in np.linspace(-1.1, -0.3, 21)])
+    rates = (np.ones((1, 3)), np.zeros((1, 3)))
+    failures = 0
+    for point in points:
+        try:
+            expected = inverse_kinematics(point[np.newaxis], geometry)
+        except UnreachableError as error:
+            failures += 1
+            with pytest.raises(UnreachableError) as caught:
+                joint_trig_motion(point[np.newaxis], *rates, geometry)
+            assert str(caught.value) == str(error)
+            continue
+        cos_q, sin_q, _, _ = joint_trig_motion(point[np.newaxis], *rates, geometry)
+        np.testing.assert_array_equal(joint_angles(cos_q, sin_q), expected)
+    assert 0 < failures < len(points)
 
 
 @pytest.mark.parametrize('low, high', [(-0.85, 1.95), (-3.0, 1.0), (-1.0, math.pi)])

@@ -43,7 +43,9 @@ from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _kernel_geometry
 from ellipath_ros.core.kinematics import _row
 from ellipath_ros.core.kinematics import _tcp_state
+from ellipath_ros.core.kinematics import joint_angles
 from ellipath_ros.core.kinematics import joint_motion
+from ellipath_ros.core.kinematics import joint_trig_motion
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -629,10 +631,10 @@ def _joint_states(motion, geometry, times):
     return _joint_motion_at(times, points, velocities, accelerations, geometry)
 
 
-def _joint_motion_at(times, points, velocities, accelerations, geometry):
-    """Return :func:`joint_motion` of TCP states at ``times``, errors naming the time."""
+def _joint_motion_at(times, points, velocities, accelerations, geometry, convert=joint_motion):
+    """Return ``convert`` (:func:`joint_motion`) of TCP states at ``times``, errors naming time."""
     try:
-        return joint_motion(points, velocities, accelerations, geometry, name='TCP position')
+        return convert(points, velocities, accelerations, geometry, name='TCP position')
     except UnreachableError as error:
         index = error.index
         wrapped = UnreachableError(f'motion at t={times[index]:.6g} s: {error}')
@@ -779,20 +781,25 @@ class MotionSamples:
         Sample times [s], (N,), sorted, from 0 to the duration.
     position, velocity, acceleration, jerk : numpy.ndarray
         TCP states at ``times`` [m, m/s, m/s^2, m/s^3], (N, 3).
-    q, qdot, qddot : numpy.ndarray
-        Joint states at ``times`` [rad, rad/s, rad/s^2], (N, 3).
+    cos_q, sin_q, qdot, qddot : numpy.ndarray
+        Joint states at ``times`` [1, 1, rad/s, rad/s^2], (N, 3): the cosines and sines of
+        the joint positions, whose angles :attr:`q` gives.
 
     """
 
     def __init__(self, motion, geometry, times, tcp, joints=None):
-        """Keep the samples; ``joints`` (q, q_dot, q_ddot) are computed when not given."""
+        """Keep the samples; ``joints`` (cos q, sin q, q_dot, q_ddot) computed when not given."""
         self.motion, self.geometry = motion, geometry
         self.times = times
         self.position, self.velocity, self.acceleration, self.jerk = tcp
         position, velocity, acceleration = tcp[:3]
         if joints is None:
-            joints = _joint_motion_at(times, position, velocity, acceleration, geometry)
-        self.q, self.qdot, self.qddot = joints
+            joints = _joint_motion_at(times, position, velocity, acceleration, geometry,
+                                      joint_trig_motion)
+        # The joint angles are computed only where they are read (their atan2 took more than
+        # half of the joint states' time; the knot search reads the rows of its knots only).
+        self.cos_q, self.sin_q, self.qdot, self.qddot = joints
+        self._q = None
         self._planned = None
         self._peak_arrays = None
 
@@ -824,7 +831,14 @@ class MotionSamples:
             motion, self.geometry, self.times * factor,
             (self.position, self.velocity / factor, self.acceleration / factor ** 2,
              self.jerk / factor ** 3),
-            (self.q, self.qdot / factor, self.qddot / factor ** 2))
+            (self.cos_q, self.sin_q, self.qdot / factor, self.qddot / factor ** 2))
+
+    @property
+    def q(self):
+        """Joint positions at ``times`` [rad], (N, 3): the atan2 of every sample, kept."""
+        if self._q is None:
+            self._q = joint_angles(self.cos_q, self.sin_q)
+        return self._q
 
     def joint_peaks(self):
         """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
@@ -880,7 +894,8 @@ class MotionSamples:
         times = np.ascontiguousarray(times, dtype=float)
         nearest, usable = self._nearest(times, low, high)
         result_times = np.where(usable, self.times[nearest], times)
-        q, qdot, qddot = (values[nearest] for values in (self.q, self.qdot, self.qddot))
+        q = joint_angles(self.cos_q[nearest], self.sin_q[nearest])
+        qdot, qddot = self.qdot[nearest], self.qddot[nearest]
         if not usable.all():
             missing = ~usable
             q[missing], qdot[missing], qddot[missing] = _joint_states(

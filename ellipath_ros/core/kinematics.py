@@ -490,22 +490,47 @@ def joint_motion(points, velocities, accelerations, geometry, *, name='points'):
         As :func:`inverse_kinematics`, or a pose at an IK singularity.
 
     """
-    points, single = _as_rows(name, points)
+    cos_q, sin_q, qdot, qddot = joint_trig_motion(points, velocities, accelerations, geometry,
+                                                  name=name)
+    q = joint_angles(cos_q, sin_q)
+    if np.shape(points) == (3,):
+        return q[0], qdot[0], qddot[0]
+    return q, qdot, qddot
+
+
+def joint_trig_motion(points, velocities, accelerations, geometry, *, name='points'):
+    """
+    Return :func:`joint_motion` with cos q and sin q for q: (cos q, sin q, q_dot, q_ddot).
+
+    For callers that read the joint angles of a few rows only: :func:`joint_angles` of
+    rows of cos q and sin q gives the same bits as :func:`joint_motion`'s q there. The
+    rates need only cos q and sin q, and the joint limits are judged without an ``atan2``
+    away from them (:func:`_inside_joint_limits`). The inputs, the errors and their order
+    are :func:`joint_motion`'s; the results are always (N, 3).
+    """
+    points, _ = _as_rows(name, points)
     converted = []
     for extra, extra_name in ((velocities, 'velocities'), (accelerations, 'accelerations')):
         array, _ = _as_rows(extra_name, extra)
         _same_shape(extra_name, array, points, name)
         converted.append(array)
     velocities, accelerations = converted
-    q, qdot, qddot = (np.empty(points.shape) for _ in range(3))
-    row, status, arm, value = _joint_rows(
+    cos_q, sin_q, qdot, qddot = (np.empty(points.shape) for _ in range(4))
+    row, status, arm, value = _joint_trig_rows(
         np.ascontiguousarray(points), np.ascontiguousarray(velocities),
-        np.ascontiguousarray(accelerations), *_joint_geometry(geometry), q, qdot, qddot)
+        np.ascontiguousarray(accelerations), *_joint_geometry(geometry), _limit_trig(geometry),
+        cos_q, sin_q, qdot, qddot)
     if row >= 0:
         raise _joint_failure(points, row, status, arm, value, geometry, name)
-    if single:
-        return q[0], qdot[0], qddot[0]
-    return q, qdot, qddot
+    return cos_q, sin_q, qdot, qddot
+
+
+def joint_angles(cos_q, sin_q):
+    """Return the joint angles ``atan2(sin_q, cos_q)`` [rad] of rows (N, 3), as IK has them."""
+    q = np.empty(np.shape(cos_q))
+    _angle_rows(np.ascontiguousarray(cos_q, dtype=float),
+                np.ascontiguousarray(sin_q, dtype=float), q)
+    return q
 
 
 def joint_speed_caps(points, directions, geometry, limit):
@@ -540,7 +565,7 @@ def _limit_trig(geometry):
 
 
 def _joint_geometry(geometry):
-    """Return the arm directions and dimensions :func:`_joint_rows` takes, in its order."""
+    """Return the arm directions and dimensions :func:`_joint_trig_rows` takes, in order."""
     return (_RADIAL_X, _RADIAL_Y, _TANGENT_X, _TANGENT_Y,
             geometry.base_radius - geometry.effector_radius, geometry.upper_arm,
             geometry.forearm, geometry.joint_min, geometry.joint_max,
@@ -838,7 +863,7 @@ _IK_OK, _IK_ABOVE, _IK_OUTSIDE, _IK_LIMIT, _IK_SINGULAR = range(5)
 
 # The row kernels below take each point's coordinates and return its results as plain floats
 # and 3-tuples (one entry per arm): a compiled call taking arrays counts their references up
-# and down (atomic NRT_incref/decref), which cost a fifth of _joint_rows' time when each row
+# and down (atomic NRT_incref/decref), which cost a fifth of _joint_trig_rows' time when each row
 # was a call with ten arrays. The arm directions, radial (x, y) and tangential (x, y), come
 # as 3-tuples too.
 @kernel(inline=True)
@@ -1028,11 +1053,45 @@ def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, sing
     return -1, 0, 0.0
 
 
-@kernel
-def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper, forearm,
-                joint_min, joint_max, singular_diagonal, q, qdot, qddot):
+@kernel(inline=True)
+def _ik_trig_point(x, y, z, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max,
+                   limit_trig):
     """
-    Per row, :func:`joint_motion`'s IK and rates.
+    :func:`_ik_point` without the atan2 of q: return (status, failing arm, value, cos q, sin q).
+
+    The same checks in the same order, a joint limit judged by :func:`_inside_joint_limits`;
+    ``value`` is the failing arm's q (``_IK_LIMIT``), else 0.
+    """
+    zero = (0.0, 0.0, 0.0)
+    if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
+        return _IK_ABOVE, 0, 0.0, zero, zero
+    fore_sq = forearm * forearm
+    upper_sq = upper * upper
+    inside0, cos0, sin0 = _ik_trig(x, y, z, rx[0], ry[0], tx[0], ty[0], offset, upper,
+                                   fore_sq, upper_sq)
+    if not inside0:
+        return _IK_OUTSIDE, 0, 0.0, zero, zero
+    inside1, cos1, sin1 = _ik_trig(x, y, z, rx[1], ry[1], tx[1], ty[1], offset, upper,
+                                   fore_sq, upper_sq)
+    if not inside1:
+        return _IK_OUTSIDE, 1, 0.0, zero, zero
+    inside2, cos2, sin2 = _ik_trig(x, y, z, rx[2], ry[2], tx[2], ty[2], offset, upper,
+                                   fore_sq, upper_sq)
+    if not inside2:
+        return _IK_OUTSIDE, 2, 0.0, zero, zero
+    cos_q, sin_q = (cos0, cos1, cos2), (sin0, sin1, sin2)
+    for arm in range(3):
+        if not _inside_joint_limits(cos_q[arm], sin_q[arm], joint_min, joint_max, limit_trig):
+            return _IK_LIMIT, arm, math.atan2(sin_q[arm], cos_q[arm]), cos_q, sin_q
+    return _IK_OK, 0, 0.0, cos_q, sin_q
+
+
+@kernel
+def _joint_trig_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper, forearm,
+                     joint_min, joint_max, singular_diagonal, limit_trig, cos_q, sin_q, qdot,
+                     qddot):
+    """
+    Per row, :func:`joint_trig_motion`'s IK (cos q, sin q) and rates.
 
     Stops at the first row that fails (out of reach, beyond a joint limit, at an IK
     singularity) and returns (row, status, arm, value) for :func:`_joint_failure`;
@@ -1041,20 +1100,29 @@ def _joint_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper
     radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
     for row in range(points.shape[0]):
         point = _row(points, row)
-        status, arm, angles, cos_q, sin_q = _ik_point(
+        status, arm, value, cosines, sines = _ik_trig_point(
             point[0], point[1], point[2], radial_x, radial_y, tangent_x, tangent_y, offset,
-            upper, forearm, joint_min, joint_max)
+            upper, forearm, joint_min, joint_max, limit_trig)
         if status != _IK_OK:
-            return row, status, arm, angles[arm]
-        _write_row(q, row, angles)
+            return row, status, arm, value
+        _write_row(cos_q, row, cosines)
+        _write_row(sin_q, row, sines)
         arm, diagonal, rates = _rate_point(
-            point, _row(velocities, row), _row(accelerations, row), cos_q, sin_q, radial_x,
+            point, _row(velocities, row), _row(accelerations, row), cosines, sines, radial_x,
             radial_y, offset, upper, singular_diagonal, (0.0, 0.0, 0.0), False)
         if arm >= 0:
             return row, _IK_SINGULAR, arm, diagonal
         _write_row(qdot, row, rates[0])
         _write_row(qddot, row, rates[1])
     return -1, _IK_OK, 0, 0.0
+
+
+@kernel
+def _angle_rows(cos_q, sin_q, q):
+    """Fill ``q`` (N, 3) with ``atan2(sin_q, cos_q)``: the call :func:`_ik_arm` makes."""
+    for row in range(q.shape[0]):
+        for arm in range(3):
+            q[row, arm] = math.atan2(sin_q[row, arm], cos_q[row, arm])
 
 
 # An angle whose sines from both joint limits exceed this share of |cos q| + |sin q| is inside

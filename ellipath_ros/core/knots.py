@@ -132,7 +132,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
     # C-contiguous and writeable: the one array type _search_knots is compiled for.
     source = tuple(np.require(values, float, ('C', 'W')) for values in (
-        samples.times, samples.q, samples.qdot, samples.qddot))
+        samples.times, samples.cos_q, samples.sin_q, samples.qdot, samples.qddot))
     table = _planned_table(samples, accept)
     initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
     evaluated = _Evaluated()
@@ -282,10 +282,10 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     """
     Run the knot search of :func:`minimal_knots` from knots wanted at ``initial`` (K,).
 
-    ``source`` = (times, q, q_dot, q_ddot) of the motion's samples, ``evaluated`` the states
-    of knots wanted where no sample is (:class:`_Evaluated`), ``table`` the planned table
-    (:meth:`MotionSamples.planned_table`), or empty when the planned positions at the check
-    points are those of ``planned`` (times, positions), ``geometry`` the first five of
+    ``source`` = (times, cos q, sin q, q_dot, q_ddot) of the motion's samples, ``evaluated``
+    the states of knots wanted where no sample is (:class:`_Evaluated`), ``table`` the planned
+    table (:meth:`MotionSamples.planned_table`), or empty when the planned positions at the
+    check points are those of ``planned`` (times, positions), ``geometry`` the first five of
     :func:`~ellipath_ros.core.kinematics._kernel_geometry`. Returns (status, times, q,
     q_dot, q_ddot, largest error, checkpoint, a, b, c, journal), with, for
     ``_NEEDS_STATES``, the times wanted and their cells (a, b, c) to evaluate; for
@@ -380,7 +380,7 @@ def _placed(wanted, low, high, context):
     wanted time, taken from the evaluated ones. Knots (times, q, q_dot, q_ddot); status
     ``_NEEDS_STATES`` with the wanted times and cells evaluated nowhere yet.
     """
-    sample_times, q, qdot, qddot = context[0]
+    sample_times, cos_q, sin_q, qdot, qddot = context[0]
     evaluated_wanted, evaluated_times, evaluated_q, evaluated_qdot, evaluated_qddot = context[1]
     count = wanted.size
     nearest = np.empty(count, np.int64)
@@ -391,13 +391,14 @@ def _placed(wanted, low, high, context):
                                             np.empty((count, 3)))
     missing = np.zeros(count, np.bool_)
     found, searched = 0, np.inf
-    # Element by element: a row view (q[row]) counts its array's references up and down.
+    # Element by element: a row view (qdot[row]) counts its array's references up and down.
+    # A sample's q is the atan2 of its cos q and sin q, as :func:`joint_angles` computes it.
     for knot in range(count):
         if usable[knot]:
             row = nearest[knot]
             times[knot] = sample_times[row]
             for axis in range(3):
-                positions[knot, axis] = q[row, axis]
+                positions[knot, axis] = math.atan2(sin_q[row, axis], cos_q[row, axis])
                 velocities[knot, axis] = qdot[row, axis]
                 accelerations[knot, axis] = qddot[row, axis]
             continue
