@@ -29,7 +29,10 @@ _S = np.linspace(0.0, 0.3, 129)
 def test_one_bad_speed_among_good_ones_is_refused(bad, where):
     values = np.full(_S.shape, 2.0)
     values[where] = bad
-    with pytest.raises(InvalidInputError, match='^speed_cap: expected positive finite'):
+    # The message names the first bad speed and where it is.
+    with pytest.raises(InvalidInputError, match=(
+            rf'^speed_cap: expected positive finite .* got {bad} at s = {_S[where]:.6g} m '
+            rf'\(sample {where} of {_S.size}\)$')):
         _cap_values(lambda s: values, _S)
 
 

@@ -78,13 +78,15 @@ class CartesianLimits:
 def _cap_values(speed_cap, s):
     """Call the speed cap on path lengths ``s`` (N,) and check the answer."""
     values = np.asarray(speed_cap(s), dtype=float)
+    expected = f'speed_cap: expected positive finite speeds of shape {s.shape} [m/s], got'
+    if values.shape != s.shape:
+        raise InvalidInputError(f'{expected} shape {values.shape}')
     # All positive and finite: the smallest above 0 (NaN where any is NaN, which fails) and
     # the largest below inf, two reductions instead of two comparisons and two np.all.
-    if values.shape != s.shape or (values.size and not (
-            values.min() > 0.0 and values.max() < math.inf)):
-        raise InvalidInputError(
-            f'speed_cap: expected positive finite speeds of shape {s.shape} [m/s], got '
-            f'shape {values.shape}, minimum {np.min(values) if values.size else None}')
+    if values.size and not (values.min() > 0.0 and values.max() < math.inf):
+        bad = int(np.flatnonzero(~((values > 0.0) & (values < math.inf)))[0])
+        raise InvalidInputError(f'{expected} {values[bad]} at s = {s[bad]:.6g} m (sample '
+                                f'{bad} of {s.size})')
     return values
 
 
