@@ -560,7 +560,15 @@ class TimedMotion:
         """
         epsilon = 1e-9 * self.duration
         marks = self._mark_times()
-        law_times = getattr(self.law, 'times', None)
+        law = self.law
+        law_times = getattr(law, 'times', None)
+        if law_times is not None and self.path.arc is not None:
+            # The time-optimal profile's: the law's steps and the marks' in one compiled pass.
+            factor = self.time_scale
+            return _piece_jerk_steps(law_times, law.s0, law.v0, law.a0, law.jerk, factor,
+                                     factor ** 2, factor ** 3, marks, epsilon,
+                                     float(self.duration), self.path._frame,
+                                     *self.path.bend._table)
         if law_times is not None:
             times = law_times[1:-1] * self.time_scale
             sizes = np.abs(np.diff(self.law.jerk)) / self.time_scale ** 3
@@ -873,6 +881,40 @@ def _smooth_bounds(motion):
 
 
 @kernel
+def _piece_jerk_steps(times, s0, v0, a0, jerk, factor, factor_2, factor_3, marks, epsilon,
+                      duration, frame, panel_t, panel_s, quintics):
+    """
+    Return :meth:`TimedMotion.jerk_steps` of a law of constant-jerk pieces on a path with an arc.
+
+    The law is :class:`_JerkPieces`' arrays slowed down by ``factor`` (its square and cube
+    given, as path_state computes them), ``marks`` (M,) the path's marks in time, ``frame``
+    and the table the path's (:func:`_state_rows`). The law's steps and the jerk vectors
+    ``epsilon`` before and after each mark (:meth:`TimedMotion.state_at` there: the law's
+    state by :func:`_piece_state`, divided by the factor's powers where it is not 1), merged
+    by :func:`_merged_steps`: the operations of path_state, state_at and jerk_steps' NumPy
+    formulas, in one compiled pass.
+    """
+    count = marks.size
+    law_rows = np.empty((4, 2 * count))
+    for row in range(2 * count):
+        if row < count:
+            t = max(marks[row] - epsilon, 0.0)
+        else:
+            t = min(marks[row - count] + epsilon, duration)
+        s, v, a, j = _piece_state(times, s0, v0, a0, jerk, t / factor)
+        if factor != 1.0:
+            v, a, j = v / factor, a / factor_2, j / factor_3
+        law_rows[0, row], law_rows[1, row], law_rows[2, row], law_rows[3, row] = s, v, a, j
+    states, norms = np.empty((4, 2 * count, 3)), np.empty((3, 2 * count))
+    _state_rows(law_rows[0], law_rows[1], law_rows[2], law_rows[3], frame, panel_t, panel_s,
+                quintics, states, norms)
+    sizes = np.empty(jerk.size - 1)
+    for piece in range(sizes.size):
+        sizes[piece] = abs(jerk[piece + 1] - jerk[piece]) / factor_3
+    return _merged_steps(times[1:-1] * factor, sizes, marks, states[3], epsilon, duration)
+
+
+@kernel
 def _merged_steps(times, sizes, marks, jerk, epsilon, duration):
     """
     Return :meth:`TimedMotion.jerk_steps` from the law's steps and the jerk at the marks.
@@ -970,17 +1012,22 @@ def _sorted_law_rows(t, duration, factor, factor_2, factor_3, times, s0, v0, a0,
     """
     last = jerk.size - 1
     piece, interval = 0, 0
+    # A division by 1 changes no value: an unscaled law (the first sampling) skips them.
+    scaled = factor != 1.0
     for row in range(t.size):
-        x = min(max(t[row], 0.0), duration) / factor
+        x = min(max(t[row], 0.0), duration)
+        if scaled:
+            x /= factor
         while piece < times.size and times[piece] <= x:
             piece += 1
         index = min(max(piece - 1, 0), last)
         x -= times[index]
         j, a, v = jerk[index], a0[index], v0[index]
         rows[0, row] = s0[index] + x * (v + x * (a / 2.0 + x * j / 6.0))
-        rows[1, row] = (v + x * (a + x * j / 2.0)) / factor
-        rows[2, row] = (a + x * j) / factor_2
-        rows[3, row] = j / factor_3
+        speed, accel = v + x * (a + x * j / 2.0), a + x * j
+        if scaled:
+            speed, accel, j = speed / factor, accel / factor_2, j / factor_3
+        rows[1, row], rows[2, row], rows[3, row] = speed, accel, j
         while interval < inner.size and inner[interval] <= t[row]:
             interval += 1
         pieces[row] = interval
