@@ -272,3 +272,36 @@ def test_sequence_sample_times_are_the_array_formula_bit_for_bit():
                 law.duration - epsilon) for start, law in zip(starts, laws)] + [starts]))
             found = sequence.sample_times(count)
             assert found.dtype == expected.dtype and np.array_equal(found, expected)
+
+
+@pytest.mark.parametrize('factor', [1.0, 1.37])
+def test_jerk_steps_of_a_time_optimal_leg_are_the_array_formulas_bit_for_bit(timed, factor):
+    motion = timed.scaled(factor)
+    law = motion.law
+    # Independently: the law's steps and the jerk vectors beside the path's marks by the
+    # NumPy formulas and state_at, merged as the kernel merges them.
+    epsilon = 1e-9 * motion.duration
+    marks = motion._mark_times()
+    jerk = motion.state_at(np.concatenate((np.maximum(marks - epsilon, 0.0),
+                                           np.minimum(marks + epsilon, motion.duration))))[3]
+    expected = motion_module._merged_steps(
+        law.times[1:-1] * factor, np.abs(np.diff(law.jerk)) / factor ** 3, marks, jerk,
+        epsilon, float(motion.duration))
+    found = motion.jerk_steps()
+    assert marks.size >= 2
+    assert all(np.array_equal(mine, theirs) for mine, theirs in zip(found, expected))
+
+
+@pytest.mark.parametrize('factor', [1.0, 1.37])
+def test_sorted_law_rows_are_the_path_state_bit_for_bit(timed, factor):
+    motion = timed.scaled(factor)
+    law = motion.law
+    t = np.linspace(0.0, motion.duration, 1001)
+    rows, pieces = np.empty((4, t.size)), np.empty(t.size, np.int64)
+    inner = np.ascontiguousarray(law.times[1:-1] * factor)
+    motion_module._sorted_law_rows(t, float(motion.duration), factor, factor ** 2,
+                                   factor ** 3, law.times, law.s0, law.v0, law.a0, law.jerk,
+                                   inner, rows, pieces)
+    assert all(np.array_equal(found, expected)
+               for found, expected in zip(rows, motion.path_state(t)))
+    assert np.array_equal(pieces, np.searchsorted(inner, t, side='right'))
