@@ -742,9 +742,9 @@ def _optimal_motion(path, limits, speed_cap):
     pieces.extend(arc_rows, c1)
     pieces.extend(descent)
     law = pieces.law()
-    segments = np.array([_rows_duration(lift), _rows_duration(arc_rows),
-                         _rows_duration(descent)])
-    segments[1] = law.duration - segments[0] - segments[2]
+    # The arc's time is what the lines leave of the law's.
+    lift_time, descent_time = _rows_duration(lift), _rows_duration(descent)
+    segments = np.array([lift_time, law.duration - lift_time - descent_time, descent_time])
     return TimedMotion(path, 'time_optimal', law.duration, segments,
                        entry[0] ** 2 * planner.kappa_end[0],
                        exit_state[0] ** 2 * planner.kappa_end[1], None, law)
