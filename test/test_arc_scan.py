@@ -24,9 +24,11 @@ import math
 from ellipath_ros.bench.latency import random_pairs
 from ellipath_ros.core import arc_scan, optimal_profile
 from ellipath_ros.core.arc_scan import _advance, _ADVANCED, _FAILURES, _KNOWN, _READ, _Scan
+from ellipath_ros.core.errors import InvalidInputError
 from ellipath_ros.core.geometry import plan_path
-from ellipath_ros.core.limits import CartesianLimits
+from ellipath_ros.core.limits import _cap_values, _LIMIT_SAMPLES, CartesianLimits
 from ellipath_ros.core.planner import _check_reach_and_speed_cap, PlannerConfig
+from ellipath_ros.core.ruckig_lines import _line_speed
 import numpy as np
 import pytest
 
@@ -308,6 +310,66 @@ def test_a_bench_leg_whose_join_failed_at_the_crossing_is_timed_by_the_scans(
     motion = optimal_profile._optimal_motion(path, limits, cap)
     assert not fallbacks
     assert motion.duration < 2.0 * _least_time(path.length, limits)
+
+
+def test_the_planner_asks_the_cap_once_for_its_grid_and_the_end_lines_speeds():
+    # One ask of the cap serves the stairs and the lines' speeds at both ends: the speeds
+    # are _line_speed's own, bit for bit, and no later ask is made for them.
+    path, cap = _bench_approach(*SPLIT_LEG)
+    asked = []
+
+    def counted(s):
+        asked.append(s.size)
+        return cap(s)
+
+    planner = optimal_profile._ArcPlanner(path, CartesianLimits(), counted)
+    assert len(asked) == 1 and asked[0] == planner.grid.size + 2 * _LIMIT_SAMPLES
+    c1, _, c2 = path.segment_lengths.tolist()
+    for start, clearance in ((0.0, c1), (path.length - c2, c2)):
+        expected = _line_speed(planner.limits, cap, start, start + clearance)
+        assert planner._cap_speed(counted, start, start + clearance) == expected
+    assert len(asked) == 1
+
+
+@pytest.mark.parametrize('failing', ['grid', 'lift', 'descent'])
+def test_a_cap_failing_anywhere_is_named_as_its_separate_asks_name_it(failing):
+    # The grid's values, then each end line's: the first ask that fails names the failure
+    # (its value, s and sample) as if the cap were asked for each on its own.
+    path, cap = _bench_approach(*SPLIT_LEG)
+    c1, arc, c2 = path.segment_lengths.tolist()
+    low, high = {'grid': (c1 + 0.5 * arc, c1 + arc), 'lift': (0.0, 0.5 * c1),
+                 'descent': (path.length - 0.5 * c2, path.length + 1.0)}[failing]
+
+    def failing_cap(s):
+        return np.where((s > low) & (s < high), 0.0, cap(s))
+
+    planner = optimal_profile._ArcPlanner(path, CartesianLimits(), cap)
+    with pytest.raises(InvalidInputError) as separate:
+        if failing == 'grid':
+            _cap_values(failing_cap, c1 + planner.grid)
+        start, clearance = (0.0, c1) if failing == 'lift' else (path.length - c2, c2)
+        _line_speed(planner.limits, failing_cap, start, start + clearance)
+    with pytest.raises(InvalidInputError) as together:
+        optimal_profile._ArcPlanner(path, CartesianLimits(), failing_cap)
+    assert str(together.value) == str(separate.value)
+
+
+def test_the_ceiling_is_computed_where_first_read_the_ends_on_their_own():
+    # The end speeds read the ceiling at both ends without the whole grid's being computed;
+    # it is the same there, bit for bit, as the grid's (computed for the valleys).
+    for make in PATHS:
+        path, cap = make()
+        planner = optimal_profile._ArcPlanner(path, CartesianLimits(), cap)
+        c1, _, c2 = path.segment_lengths.tolist()
+        speeds = [planner.end_speed(clearance, at_start, cap)
+                  for clearance, at_start in ((c1, True), (c2, False))]
+        assert 'ceiling' not in vars(planner)
+        ceiling = planner.ceiling
+        table = planner.forward.table
+        for row in (0, ceiling.size - 1):
+            assert optimal_profile._cruise_speed(table, row, *planner._cruise_limits) == (
+                ceiling[row])
+        assert speeds[0] <= ceiling[0] and speeds[1] <= ceiling[-1]
 
 
 def test_cap_stairs_are_the_lowest_cap_each_stair_spans():

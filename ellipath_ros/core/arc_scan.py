@@ -113,40 +113,31 @@ class _NoMotion(Exception):
 
 
 @kernel
-def _arc_tables(kappa, kappa_s, cap):
+def _arc_tables(forward, backward):
     """
-    Return the tables (see the module's layouts) of the arc run forwards and backwards.
+    Fill the tables (see the module's layouts) of the arc run forwards and backwards.
 
-    Backwards (from T2 to T1) the grid is reversed and dkappa/ds changes sign.
-
-    Parameters
-    ----------
-    kappa, kappa_s : numpy.ndarray, shape (points,)
-        Curvature [1/m] and its derivative along the arc [1/m**2] on a uniform grid.
-    cap : numpy.ndarray, shape (points - 1,)
-        Speed cap [m/s] of each cell.
-
+    ``forward`` (5, points) holds kappa, dkappa/ds and the cells' speed caps in its rows 0,
+    2 and 4 (but the last point's cap) on entry; its other rows and ``backward`` (5, points)
+    are filled. Backwards (from T2 to T1) the grid is reversed and dkappa/ds changes sign.
     """
-    points = kappa.size
+    points = forward.shape[1]
     last = points - 1
-    forward, backward = np.empty((5, points)), np.empty((5, points))
     # Row by row (each a contiguous view): the loops index one dimension, not two.
     kappa_forward, rise_forward, kappa_s_forward, rise_s_forward, cap_forward = forward
     kappa_backward, rise_backward, kappa_s_backward, rise_s_backward, cap_backward = backward
     for index in range(points):
-        kappa_forward[index], kappa_s_forward[index] = kappa[index], kappa_s[index]
-        kappa_backward[index] = kappa[last - index]
-        kappa_s_backward[index] = -kappa_s[last - index]
+        kappa_backward[index] = kappa_forward[last - index]
+        kappa_s_backward[index] = -kappa_s_forward[last - index]
     for index in range(last):
         rise_forward[index] = kappa_forward[index + 1] - kappa_forward[index]
         rise_s_forward[index] = kappa_s_forward[index + 1] - kappa_s_forward[index]
         rise_backward[index] = kappa_backward[index + 1] - kappa_backward[index]
         rise_s_backward[index] = kappa_s_backward[index + 1] - kappa_s_backward[index]
-        cap_forward[index], cap_backward[index] = cap[index], cap[last - 1 - index]
+        cap_backward[index] = cap_forward[last - 1 - index]
     # The last point's rises and cap (never read) are 0.
     rise_forward[last] = rise_s_forward[last] = cap_forward[last] = 0.0
     rise_backward[last] = rise_s_backward[last] = cap_backward[last] = 0.0
-    return forward, backward
 
 
 class _Scanner:

@@ -26,6 +26,7 @@ scan itself is :mod:`~ellipath_ros.core.arc_scan`, this module joins two scans, 
 valleys and end speeds, the fallback and the vertical lines.
 """
 
+import functools
 import math
 import struct
 
@@ -37,11 +38,13 @@ from .arc_scan import (
     _reversed_rows, _rows, _run, _Scanner, _speed_at, _SPEED_TARGET, _state, _STATUS,
     _STOPPED, _table_at, _time_at, _TWO)
 from .compiled import kernel
-from .errors import LimitError
-from .limits import _ACCEL_MARGIN, _cap_values, _even_samples, _JERK_MARGIN, _SPEED_MARGIN
+from .errors import InvalidInputError, LimitError
+from .limits import (
+    _ACCEL_MARGIN, _cap_values, _even_samples, _JERK_MARGIN, _LIMIT_SAMPLES, _SPEED_MARGIN)
 from .motion import _PieceList, _rows_duration, TimedMotion
 from .ruckig_lines import (
-    _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows, _straight_motion)
+    _capped_line_speed, _constant_limits, _line_limits, _line_speed, _reach_speed, _ruckig_rows,
+    _straight_motion)
 
 # The key of a solved vertical line: its start and end states and its stretch.
 _EIGHT_FLOATS = struct.Struct('<8d')
@@ -106,6 +109,8 @@ _JOIN_EDGE_STEPS = 30
 _CEILING_SHARE = 0.9
 # The speed cap along the arc is taken as stairs this many table cells long.
 _CAP_STAIR = 8
+# The cap's values where there is no cap (the array type the tables' kernel is compiled for).
+_NO_CAP = np.empty(0)
 
 
 class _EndTooFast(Exception):
@@ -129,39 +134,76 @@ class _ArcPlanner:
             math.log2(self.length / bend.min_radius)))))
         kappa_t, kappa_s_t, sigma = bend.curvature_on_grid(2 * intervals + 1)[1:]
         grid = _even_samples(0.0, self.length, intervals + 1)
-        kappa, kappa_s = np.empty(grid.size), np.empty(grid.size)
-        _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s)
+        # The speeds the lines aim at ({(s_from, s_to, cap): speed}): the probes solve the
+        # lines to the end states they try, the chosen one is solved again for the motion.
+        self._cap_speeds = {}
+        values, stretches = _NO_CAP, ()
+        if speed_cap is not None:
+            values, stretches = self._cap_on_grid(speed_cap, grid)
         # The speed cap as stairs of _CAP_STAIR cells, each at the lowest value it spans: the
         # scans level off on a stair and cruise, and two scans cruising on one stair meet.
-        cells = np.full(intervals, math.inf)
-        if speed_cap is not None:
-            # A C-contiguous, writable copy: the one array type the kernel is compiled for (a
-            # cap may answer with any view).
-            values = np.array(_cap_values(speed_cap, path.segment_lengths[0] + grid))
-            _cap_stairs(values, _SPEED_MARGIN, _CAP_STAIR, cells)
+        forward, backward, lowest = _planner_tables(sigma, kappa_t, kappa_s_t, grid, values,
+                                                    len(stretches))
+        for (s_from, s_to), value in zip(stretches, lowest.tolist()):
+            self._cap_speeds[s_from, s_to, speed_cap] = _capped_line_speed(limits, value)
         self.grid = grid
         self._grid_step = float(grid[1])
-        forward, backward = _arc_tables(kappa, kappa_s, cells)
-        cell = self.length / (len(kappa) - 1)
+        cell = self.length / intervals
         budget = np.array([_STEP_BUDGET])
         self.forward = _Scanner(forward, cell, limits, budget)
         self.backward = _Scanner(backward, cell, limits, budget)
-        # The ceiling places the speed valleys and their speeds.
-        self.ceiling = np.empty(grid.size)
-        _cruise_speeds(kappa, kappa_s, cells, limits.max_speed * _SPEED_MARGIN,
-                       _CEILING_SHARE * limits.max_accel * _ACCEL_MARGIN,
-                       _CEILING_SHARE * limits.max_jerk * _JERK_MARGIN, self.ceiling)
+        # The speed, acceleration and jerk of the ceiling (see ceiling).
+        self._cruise_limits = (limits.max_speed * _SPEED_MARGIN,
+                               _CEILING_SHARE * limits.max_accel * _ACCEL_MARGIN,
+                               _CEILING_SHARE * limits.max_jerk * _JERK_MARGIN)
         # A G2 join's ends have curvature 0 exactly (the table holds rounding there).
         self.kappa_end = ((0.0, 0.0) if path.join == 'g2'
-                          else (float(kappa[0]), float(kappa[-1])))
+                          else (float(forward[0, 0]), float(forward[0, -1])))
         self.hills = 0
-        # The vertical lines solved so far by Ruckig ({arguments: rows}): the probes solve the
-        # lines to the end states they try, the chosen one is solved again for the motion.
+        # The vertical lines solved so far by Ruckig ({arguments: rows}), for the same reason
+        # as the speeds they aim at.
         self._lines = {}
-        # The speeds the lines aim at ({(s_from, s_to, cap): speed}), for the same reason.
-        self._cap_speeds = {}
         # The lengths [m] of the G2 transitions at T1 and T2 the probes look ahead over.
         self._transitions = {}
+
+    @functools.cached_property
+    def ceiling(self):
+        """
+        Return the speed ceiling at each grid point (:func:`_cruise_speeds`), computed once.
+
+        It places the speed valleys and their speeds. Most arcs join without one (520 of 589
+        bench legs): only their ends' are read then (:meth:`end_speed`), so the whole grid's
+        (a hypot and a cube root at a fifth of its points) is computed where first needed.
+        """
+        return _cruise_speeds(self.forward.table, *self._cruise_limits)
+
+    def _cap_on_grid(self, speed_cap, grid):
+        """
+        Return the speed cap's values on the arc's ``grid`` and the end speeds' line stretches.
+
+        Returns (values, stretches): the cap at the grid points (path lengths), then at the
+        ``_LIMIT_SAMPLES`` of each stretch [s_from, s_to] of ``stretches`` (a tuple of
+        pairs) on which :meth:`end_speed` asks for the lines' speed (:func:`_line_speed`),
+        all in one call of the cap. A cap that fails is asked again as those would ask it,
+        one after the other, to name its first failure as they do.
+        """
+        c1, _, c2 = self.path.segment_lengths.tolist()
+        length = self.path.length
+        # end_speed's stretches, where _line_speed asks the cap (a line longer than nothing).
+        stretches = tuple((start, start + clearance) for start, clearance
+                          in ((0.0, c1), (length - c2, c2))
+                          if clearance > 0.0 and start + clearance > start)
+        queries = _cap_queries(c1, grid, np.array(stretches, dtype=float).reshape(-1, 2),
+                               _LIMIT_SAMPLES)
+        try:
+            # A C-contiguous, writable copy: the one array type the kernel is compiled for (a
+            # cap may answer with any view).
+            return np.array(_cap_values(speed_cap, queries)), stretches
+        except InvalidInputError:
+            _cap_values(speed_cap, c1 + grid)
+            for s_from, s_to in stretches:
+                _line_speed(self.limits, speed_cap, s_from, s_to)
+            raise
 
     def line_rows(self, start, end, speed_cap, s_start, s_end):
         """Return :func:`_line_rows` of a vertical line on the planner's limits, solved once."""
@@ -188,7 +230,10 @@ class _ArcPlanner:
         # A G2 join has no curvature at T1/T2, hence no acceleration step to bound.
         step_speed = (math.inf if self.kappa_end[index] <= 0.0 else
                       math.sqrt(limits.max_accel_jump / self.kappa_end[index]) * (1.0 - 1e-3))
-        speed = min(float(self.ceiling[index]), step_speed,
+        table = self.forward.table
+        ceiling = _cruise_speed(table, 0 if at_start else table.shape[1] - 1,
+                                *self._cruise_limits)
+        speed = min(ceiling, step_speed,
                     _reach_speed(clearance, limits.max_accel * _ACCEL_MARGIN,
                                  limits.max_jerk * _JERK_MARGIN) * (1.0 - 1e-3))
         if speed_cap is not None and clearance > 0.0:
@@ -525,6 +570,53 @@ def _valley_index(ceiling, grid_step, forward, forward_count, backward, backward
 
 
 @kernel
+def _cap_queries(offset, grid, stretches, samples):
+    """
+    Return the path lengths [m] at which the planner asks the speed cap (see _cap_on_grid).
+
+    ``offset`` + the arc's ``grid`` (M,), then ``samples`` even samples
+    (:func:`~ellipath_ros.core.limits._even_samples`) of each stretch of ``stretches``
+    (S, 2), rows (s_from, s_to).
+    """
+    points = grid.size
+    queries = np.empty(points + stretches.shape[0] * samples)
+    for index in range(points):
+        queries[index] = offset + grid[index]
+    for stretch in range(stretches.shape[0]):
+        first = points + stretch * samples
+        queries[first:first + samples] = _even_samples(stretches[stretch, 0],
+                                                       stretches[stretch, 1], samples)
+    return queries
+
+
+@kernel
+def _planner_tables(sigma, kappa_t, kappa_s_t, grid, cap, stretches):
+    """
+    Return the :class:`_ArcPlanner`'s scan tables and lowest caps: (forward, backward, lowest).
+
+    The curvature resampled evenly on the arc's ``grid`` (M,) (:func:`_uniform_curvature` of
+    ``sigma``, ``kappa_t``, ``kappa_s_t``), the speed cap's stairs (:func:`_cap_stairs` of its
+    values at the grid points, ``cap``'s first M; none where ``cap`` is empty), in the scans'
+    tables (:func:`~ellipath_ros.core.arc_scan._arc_tables`): one call for the steps that
+    each cost a call. ``lowest`` (S,) holds the lowest cap on each of the ``stretches`` line
+    stretches whose values follow the grid's in ``cap`` (``_LIMIT_SAMPLES`` each).
+    """
+    points = grid.size
+    forward, backward = np.empty((5, points)), np.empty((5, points))
+    _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, forward[0], forward[2])
+    cells = forward[4, :points - 1]
+    cells[:] = math.inf
+    if cap.size:
+        _cap_stairs(cap[:points], _SPEED_MARGIN, _CAP_STAIR, cells)
+    _arc_tables(forward, backward)
+    lowest = np.empty(stretches)
+    for stretch in range(stretches):
+        first = points + stretch * _LIMIT_SAMPLES
+        lowest[stretch] = cap[first:first + _LIMIT_SAMPLES].min()
+    return forward, backward, lowest
+
+
+@kernel
 def _uniform_curvature(sigma, kappa_t, kappa_s_t, grid, kappa, kappa_s):
     """
     Fill ``kappa`` and ``kappa_s`` (M,) at the arc lengths ``grid`` (M,), even steps from 0.
@@ -581,30 +673,36 @@ def _cap_stairs(values, margin, stair, cells):
 
 
 @kernel
-def _cruise_speeds(kappa, kappa_s, cells, speed, accel, jerk, out):
-    """
-    Fill ``out`` (M,) with the speed at which s'' = 0 keeps ``accel`` and ``jerk``.
+def _cruise_speeds(table, speed, accel, jerk):
+    """Return :func:`_cruise_speed` at each grid point of a scan ``table``, shape (M,)."""
+    ceiling = np.empty(table.shape[1])
+    for row in range(ceiling.size):
+        ceiling[row] = _cruise_speed(table, row, speed, accel, jerk)
+    return ceiling
 
-    At each of the M grid points of ``kappa`` and ``kappa_s`` (M,): the
-    smallest of ``speed``, the cap of the cells (M - 1,) on both sides,
-    sqrt(accel / kappa) and (jerk / hypot(kappa**2, kappa_s))**(1/3) (no bound
-    where the curvature, or both terms, are 0).
+
+@kernel(inline=True)
+def _cruise_speed(table, row, speed, accel, jerk):
     """
-    last = cells.size - 1
-    for row in range(kappa.size):
-        ceiling = min(speed, cells[max(row - 1, 0)], cells[min(row, last)])
-        if kappa[row] > 0.0:
-            ceiling = min(ceiling, math.sqrt(accel / kappa[row]))
-        # The jerk's bound is at least (jerk / (kappa**2 + |kappa_s|))**(1/3) (the sum is at
-        # least the hypot): where that is above the ceiling by far more than rounding, the
-        # bound cannot lower it, and its hypot and cube root (most of the loop's time) are
-        # skipped. Otherwise (and where both terms are 0: no bound) as described.
-        if jerk < ceiling * ceiling * ceiling * (kappa[row] ** 2 + abs(kappa_s[row])) * (
-                1.0 + 1e-9):
-            rate = math.hypot(kappa[row] ** 2, kappa_s[row])
-            if rate > 0.0:
-                ceiling = min(ceiling, (jerk / rate) ** (1.0 / 3.0))
-        out[row] = ceiling
+    Return the speed at grid point ``row`` of a scan ``table`` at which s'' = 0 keeps the limits.
+
+    The smallest of ``speed``, the cap of the cells on both sides,
+    sqrt(``accel`` / kappa) and (``jerk`` / hypot(kappa**2, kappa_s))**(1/3)
+    (no bound where the curvature, or both terms, are 0).
+    """
+    kappa, kappa_s = table[0, row], table[2, row]
+    ceiling = min(speed, table[4, max(row - 1, 0)], table[4, min(row, table.shape[1] - 2)])
+    if kappa > 0.0:
+        ceiling = min(ceiling, math.sqrt(accel / kappa))
+    # The jerk's bound is at least (jerk / (kappa**2 + |kappa_s|))**(1/3) (the sum is at least
+    # the hypot): where that is above the ceiling by far more than rounding, the bound cannot
+    # lower it, and its hypot and cube root (most of the time) are skipped. Otherwise (and
+    # where both terms are 0: no bound) as described.
+    if jerk < ceiling * ceiling * ceiling * (kappa ** 2 + abs(kappa_s)) * (1.0 + 1e-9):
+        rate = math.hypot(kappa ** 2, kappa_s)
+        if rate > 0.0:
+            ceiling = min(ceiling, (jerk / rate) ** (1.0 / 3.0))
+    return ceiling
 
 
 def _optimal_motion(path, limits, speed_cap):
@@ -644,9 +742,9 @@ def _optimal_motion(path, limits, speed_cap):
     pieces.extend(arc_rows, c1)
     pieces.extend(descent)
     law = pieces.law()
-    segments = np.array([_rows_duration(lift), _rows_duration(arc_rows),
-                         _rows_duration(descent)])
-    segments[1] = law.duration - segments[0] - segments[2]
+    # The arc's time is what the lines leave of the law's.
+    lift_time, descent_time = _rows_duration(lift), _rows_duration(descent)
+    segments = np.array([lift_time, law.duration - lift_time - descent_time, descent_time])
     return TimedMotion(path, 'time_optimal', law.duration, segments,
                        entry[0] ** 2 * planner.kappa_end[0],
                        exit_state[0] ** 2 * planner.kappa_end[1], None, law)

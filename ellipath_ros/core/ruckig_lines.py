@@ -132,11 +132,15 @@ def _line_solution(start, target, limits, speed_cap, s_from, s_to):
 
 def _line_speed(limits, speed_cap, s_from, s_to):
     """Return the speed [m/s] a line's pieces aim at on [s_from, s_to] (limit and cap)."""
-    speed = limits.max_speed * _SPEED_MARGIN
     if speed_cap is not None and s_to > s_from:
-        speed = min(speed, _SPEED_MARGIN * float(_cap_values(
+        return _capped_line_speed(limits, float(_cap_values(
             speed_cap, _even_samples(float(s_from), float(s_to), _LIMIT_SAMPLES)).min()))
-    return speed
+    return limits.max_speed * _SPEED_MARGIN
+
+
+def _capped_line_speed(limits, lowest_cap):
+    """Return the speed [m/s] a line aims at where the lowest cap on it is ``lowest_cap``."""
+    return min(limits.max_speed * _SPEED_MARGIN, _SPEED_MARGIN * lowest_cap)
 
 
 def _line_limits(limits):
