@@ -36,6 +36,7 @@ from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.joint_trajectory import _checked_state_at
 from ellipath_ros.core.joint_trajectory import _fill_quintic
 from ellipath_ros.core.joint_trajectory import _hermite_in
+from ellipath_ros.core.joint_trajectory import _joint_motion_at
 from ellipath_ros.core.joint_trajectory import _motion_duration
 from ellipath_ros.core.joint_trajectory import _names
 from ellipath_ros.core.joint_trajectory import _nearest_samples
@@ -49,6 +50,7 @@ from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _forward_point
 from ellipath_ros.core.kinematics import _kernel_geometry
+from ellipath_ros.core.kinematics import joint_trig_motion
 import numpy as np
 
 __all__ = ['minimal_knots', 'segment_deviations']
@@ -142,14 +144,14 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     missing = ~samples._nearest(initial, low, high)[1]
     if missing.any():
         wanted = initial[missing]
-        evaluated.add_states(wanted, samples.states(wanted, low[missing], high[missing]))
+        evaluated.add_states(wanted, _motion_states(samples, wanted))
     arms = _kernel_geometry(geometry)[:5]
     journal, checkpoint = np.empty(0), _START
     while True:
         (status, times, q, qdot, qddot, error, checkpoint, wanted, low, high,
          journal) = _search_knots(initial, source, evaluated.states, table, evaluated.planned,
                                   arms, fractions, accept, shortest, journal, checkpoint)
-        if not evaluated.supplied(status, samples, wanted, low, high):
+        if not evaluated.supplied(status, samples, wanted):
             break
     if status == _TOO_FINE:
         raise InvalidInputError(
@@ -265,7 +267,7 @@ def _split_segments(samples, trajectory, steps, segments, tolerance, gap, halvin
         status, times, q, qdot, qddot, deviation, need = _split_points(
             knots, steps, segments, source, evaluated.states, table, evaluated.planned,
             geometry, fractions, accept, gap, halvings, same)
-        if not evaluated.supplied(status, samples, *need):
+        if not evaluated.supplied(status, samples, need[0]):
             return JointTrajectoryData(trajectory.joint_names, times, q, qdot, qddot), deviation
 
 
@@ -436,35 +438,46 @@ class _Evaluated:
     """What the motion gave where the compiled search stopped for it, kept for its reruns."""
 
     def __init__(self):
-        # Knots wanted at times (E,) (sorted), placed at times (E,) with q, q_dot, q_ddot.
-        self.states = (np.empty(0), np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
+        # Knots at times (E,) (sorted) with cos q, sin q, q_dot, q_ddot (E, 3).
+        self.states = (np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)),
                        np.empty((0, 3)))
         # Check times (P,) (sorted) and the planned positions there (P, 3).
         self.planned = (np.empty(0), np.empty((0, 3)))
 
-    def add_states(self, wanted, states):
-        """Keep :meth:`MotionSamples.states` ``states`` of knots wanted at ``wanted``."""
-        self.states = _merged_rows(self.states, (wanted, *states))
+    def add_states(self, times, states):
+        """Keep the :func:`_motion_states` ``states`` of knots at ``times``."""
+        self.states = _merged_rows(self.states, (times, *states))
 
     def add_planned(self, times, positions):
         """Keep the planned ``positions`` (N, 3) at check ``times`` (N,)."""
         self.planned = _merged_rows(self.planned, (times, positions))
 
-    def supplied(self, status, samples, wanted, low, high):
+    def supplied(self, status, samples, wanted):
         """
         Keep what a kernel that stopped with ``status`` needs; return whether it stopped.
 
-        ``_NEEDS_STATES``: the states of knots wanted at ``wanted`` in cells [``low``,
-        ``high``] (:meth:`MotionSamples.states`); ``_NEEDS_PLANNED``: the planned positions
-        at check times ``wanted``.
+        ``_NEEDS_STATES``: the states of knots wanted at ``wanted`` that no sample serves
+        (:func:`_motion_states`); ``_NEEDS_PLANNED``: the planned positions at check times
+        ``wanted``.
         """
         if status == _NEEDS_STATES:
-            self.add_states(wanted, samples.states(wanted, low, high))
+            self.add_states(wanted, _motion_states(samples, wanted))
         elif status == _NEEDS_PLANNED:
             self.add_planned(wanted, _checked_state_at(samples.motion, wanted)[0])
         else:
             return False
         return True
+
+
+def _motion_states(samples, times):
+    """
+    Return (cos q, sin q, q_dot, q_ddot) of the motion at ``times`` (K,), as samples have.
+
+    The states of knots no sample serves (:meth:`MotionSamples.states` evaluates the motion at
+    their times), their angles left to the kernel that places them, as a sample's.
+    """
+    return _joint_motion_at(times, *_checked_state_at(samples.motion, times)[:3],
+                            samples.geometry, joint_trig_motion)
 
 
 def _merged_rows(kept, added):
@@ -581,7 +594,7 @@ def _placed(wanted, low, high, same, context):
     ``evaluated`` of :func:`_search_knots`.
     """
     sample_times, cos_q, sin_q, qdot, qddot = context[0]
-    evaluated_wanted, evaluated_times, evaluated_q, evaluated_qdot, evaluated_qddot = context[1]
+    evaluated_times, evaluated_cos_q, evaluated_sin_q, evaluated_qdot, evaluated_qddot = context[1]
     count = wanted.size
     nearest = np.empty(count, np.int64)
     usable = np.empty(count, np.bool_)
@@ -592,7 +605,8 @@ def _placed(wanted, low, high, same, context):
     missing = np.zeros(count, np.bool_)
     found, searched = 0, np.inf
     # Element by element: a row view (qdot[row]) counts its array's references up and down.
-    # A sample's q is the atan2 of its cos q and sin q, as :func:`joint_angles` computes it.
+    # A knot's q is the atan2 of its cos q and sin q (a sample's, or an evaluated one's), as
+    # :func:`joint_angles` computes it.
     for knot in range(count):
         if usable[knot]:
             row = nearest[knot]
@@ -603,13 +617,14 @@ def _placed(wanted, low, high, same, context):
                 accelerations[knot, axis] = qddot[row, axis]
             continue
         # Wanted in order (as a rule): each search continues from the one before.
-        row = _sorted_position(evaluated_wanted, wanted[knot],
+        row = _sorted_position(evaluated_times, wanted[knot],
                                found if wanted[knot] >= searched else 0)
         found, searched = row, wanted[knot]
-        if row < evaluated_wanted.size and evaluated_wanted[row] == wanted[knot]:
+        if row < evaluated_times.size and evaluated_times[row] == wanted[knot]:
             times[knot] = evaluated_times[row]
             for axis in range(3):
-                positions[knot, axis] = evaluated_q[row, axis]
+                positions[knot, axis] = math.atan2(evaluated_sin_q[row, axis],
+                                                   evaluated_cos_q[row, axis])
                 velocities[knot, axis] = evaluated_qdot[row, axis]
                 accelerations[knot, axis] = evaluated_qddot[row, axis]
         else:
