@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The cycle's chain of legs and rests, checked whole at its end; points spaced apart."""
+"""The cycle's chain of legs and rests, checked whole at its end."""
 
 from ellipath_ros.core import planner
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
@@ -44,24 +44,3 @@ def test_a_chain_is_held_read_only_and_checked_whole_at_its_end():
     broken = planner._concatenate(_at_rest([0.0, 1.0]), _at_rest([0.0, 1e-300]))
     with pytest.raises(TrajectoryRejectedError, match=r'^time_from_start\[2\]: expected a time'):
         validate_jtc(broken, NAMES)
-
-
-@pytest.mark.parametrize('seed', range(20))
-def test_added_points_keep_their_distance_from_the_points_and_each_other(seed):
-    rng = np.random.default_rng(seed)
-    gap = planner._KNOT_MIN_GAP
-    times = np.cumsum(rng.uniform(0.5 * gap, 20 * gap, 30))
-    # Candidates near the points, near each other, repeated, in any order.
-    added = np.concatenate((times[rng.integers(0, 30, 10)] + rng.uniform(-gap, gap, 10),
-                            rng.uniform(times[0], times[-1], 30)))
-    added = np.concatenate((added, added[:5]))
-    rng.shuffle(added)
-    kept = planner._spaced(times, added)
-    assert kept.dtype == float and np.all(np.diff(kept) >= gap)
-    assert np.isin(kept, added).all()
-    assert np.abs(kept[:, None] - times[None, :]).min(initial=np.inf) >= gap
-    # Each candidate left out is too close to a point, or to one kept before it (in time order).
-    for candidate in np.setdiff1d(added, kept):
-        near_point = np.abs(times - candidate).min() < gap
-        earlier = kept[kept < candidate]
-        assert near_point or (earlier.size and candidate - earlier[-1] < gap)

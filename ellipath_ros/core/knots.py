@@ -36,11 +36,13 @@ from ellipath_ros.core.errors import require_range
 from ellipath_ros.core.joint_trajectory import _checked_state_at
 from ellipath_ros.core.joint_trajectory import _fill_quintic
 from ellipath_ros.core.joint_trajectory import _hermite_in
+from ellipath_ros.core.joint_trajectory import _joint_motion_at
 from ellipath_ros.core.joint_trajectory import _motion_duration
 from ellipath_ros.core.joint_trajectory import _names
 from ellipath_ros.core.joint_trajectory import _nearest_samples
 from ellipath_ros.core.joint_trajectory import _polynomial
 from ellipath_ros.core.joint_trajectory import _SAFETY
+from ellipath_ros.core.joint_trajectory import _SAME_TIME
 from ellipath_ros.core.joint_trajectory import _sorted_position
 from ellipath_ros.core.joint_trajectory import DEFAULT_JOINT_NAMES
 from ellipath_ros.core.joint_trajectory import JointTrajectoryData
@@ -48,6 +50,7 @@ from ellipath_ros.core.joint_trajectory import MotionSamples
 from ellipath_ros.core.kinematics import _ASSEMBLED
 from ellipath_ros.core.kinematics import _forward_point
 from ellipath_ros.core.kinematics import _kernel_geometry
+from ellipath_ros.core.kinematics import joint_trig_motion
 import numpy as np
 
 __all__ = ['minimal_knots', 'segment_deviations']
@@ -130,9 +133,7 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     fractions = np.arange(1, check_count + 1) / (check_count + 1.0)
 
     samples = MotionSamples.of(motion, geometry) if samples is None else samples
-    # C-contiguous and writeable: the one array type _search_knots is compiled for.
-    source = tuple(np.require(values, float, ('C', 'W')) for values in (
-        samples.times, samples.cos_q, samples.sin_q, samples.qdot, samples.qddot))
+    source = _sample_source(samples)
     table = _planned_table(samples, accept)
     initial = np.linspace(0.0, duration, max(2, math.ceil(duration / _INITIAL_STEP)) + 1)
     evaluated = _Evaluated()
@@ -143,18 +144,14 @@ def minimal_knots(motion, geometry, joint_names=DEFAULT_JOINT_NAMES, tolerance=1
     missing = ~samples._nearest(initial, low, high)[1]
     if missing.any():
         wanted = initial[missing]
-        evaluated.add_states(wanted, samples.states(wanted, low[missing], high[missing]))
+        evaluated.add_states(wanted, _motion_states(samples, wanted))
     arms = _kernel_geometry(geometry)[:5]
     journal, checkpoint = np.empty(0), _START
     while True:
         (status, times, q, qdot, qddot, error, checkpoint, wanted, low, high,
          journal) = _search_knots(initial, source, evaluated.states, table, evaluated.planned,
                                   arms, fractions, accept, shortest, journal, checkpoint)
-        if status == _NEEDS_STATES:
-            evaluated.add_states(wanted, samples.states(wanted, low, high))
-        elif status == _NEEDS_PLANNED:
-            evaluated.add_planned(wanted, _checked_state_at(motion, wanted)[0])
-        else:
+        if not evaluated.supplied(status, samples, wanted):
             break
     if status == _TOO_FINE:
         raise InvalidInputError(
@@ -214,6 +211,193 @@ def segment_deviations(samples, trajectory, segments, tolerance, check_samples=2
                                                                     need[0])[0]))
 
 
+def _split_segments(samples, trajectory, steps, segments, tolerance, gap, halvings,
+                    check_samples=24):
+    """
+    Return ``trajectory`` with points splitting ``segments``, and the new segments' deviation.
+
+    Each of ``segments`` (S,) (point i to i + 1) gets a point at each of the sorted times
+    ``steps`` inside it (not within ``gap`` of its ends), or, if it has none, at its middle:
+    the sample nearest to the middle if that lies in the middle half of the segment, else the
+    middle itself. A point closer than ``gap`` to a point or to one added before it (in time
+    order) is left out; the others sit on the sample at their time, or take the motion's
+    state there (:meth:`MotionSamples.states`). Every segment with an end not among
+    ``trajectory``'s points is then checked as :func:`minimal_knots` checks its own
+    (:func:`segment_deviations`, accepted up to ``_SAFETY`` of ``tolerance``); those that
+    fail get a point at their middle in the same way, up to ``halvings`` times. One
+    compiled call (:func:`_split_points`), run again where it needs the motion at times no
+    sample gives.
+
+    Parameters
+    ----------
+    samples : MotionSamples
+        The samples of the motion that ``trajectory`` follows.
+    trajectory : JointTrajectoryData
+        Points on the motion (exact joint states at their times).
+    steps : numpy.ndarray
+        Sorted times (N,) [s] at which the segments are split where they hold one.
+    segments : numpy.ndarray
+        Indices (S,) of the segments to split, sorted.
+    tolerance : float
+        Largest allowed TCP deviation [m].
+    gap : float
+        Shortest distance of an added point from any other [s].
+    halvings : int
+        Rounds of halving the new segments that fail the check.
+    check_samples : int
+        Interior check points per segment.
+
+    Returns
+    -------
+    tuple of (JointTrajectoryData, float)
+        The points, and the largest deviation on the new segments [m] (0 with none; inf if
+        one still fails after the halvings).
+
+    """
+    accept = _SAFETY * tolerance
+    fractions = np.arange(1, check_samples + 1) / (check_samples + 1.0)
+    source = _sample_source(samples)
+    table = _planned_table(samples, accept)
+    geometry = _kernel_geometry(samples.geometry)[:5]
+    knots = (trajectory.time_from_start, trajectory.positions, trajectory.velocities,
+             trajectory.accelerations)
+    same = _SAME_TIME * samples.duration
+    evaluated = _Evaluated()
+    while True:
+        status, times, q, qdot, qddot, deviation, need = _split_points(
+            knots, steps, segments, source, evaluated.states, table, evaluated.planned,
+            geometry, fractions, accept, gap, halvings, same)
+        if not evaluated.supplied(status, samples, need[0]):
+            return JointTrajectoryData(trajectory.joint_names, times, q, qdot, qddot), deviation
+
+
+def _sample_source(samples):
+    """Return the samples' (times, cos q, sin q, q_dot, q_ddot) that the kernels place on."""
+    # C-contiguous and writeable: the one array type the kernels are compiled for.
+    return tuple(np.require(values, float, ('C', 'W')) for values in (
+        samples.times, samples.cos_q, samples.sin_q, samples.qdot, samples.qddot))
+
+
+@kernel
+def _split_points(knots, steps, segments, source, evaluated, table, planned, geometry,
+                  fractions, accept, gap, halvings, same):
+    """
+    Return :func:`_split_segments`' points: (status, times, q, q_dot, q_ddot, deviation, need).
+
+    ``knots`` the points (times, q, q_dot, q_ddot), ``source``, ``evaluated``, ``table``,
+    ``planned`` and ``geometry`` as for :func:`_search_knots`, ``same`` the largest distance
+    [s] of a sample from a point that sits on it. Stops as :func:`_search_knots` does, with
+    ``_NEEDS_STATES`` (wanted times (a), empty cells (b, c)) or ``_NEEDS_PLANNED`` (check
+    times (a)); a run after a stop does all from the start, with what the stop asked for.
+    """
+    earlier = knots[0]
+    points = (knots[0].copy(), knots[1].copy(), knots[2].copy(), knots[3].copy())
+    # No cells: a point is placed on a sample only at its own time (within ``same``).
+    context, no_cells = (source, evaluated), np.empty(0)
+    split, split_steps = segments, steps
+    for halving in range(halvings + 1):
+        wanted = _spaced(points[0], _split_times(points[0], split_steps, split, source[0],
+                                                 gap), gap)
+        status, added, need = _placed(wanted, no_cells, no_cells, same, context)
+        if status != _FOUND:
+            return status, points[0], points[1], points[2], points[3], 0.0, need
+        points = _joined(points, added)
+        made = _new_segments(points[0], earlier)
+        status, deviations, need = _evaluated_errors(points, made, made + 1, table, planned,
+                                                     geometry, fractions, np.inf)
+        if status != _FOUND:
+            return status, points[0], points[1], points[2], points[3], 0.0, need
+        failed = made[deviations > accept]
+        if failed.size == 0:
+            largest = 0.0
+            for deviation in deviations:
+                largest = max(largest, deviation)
+            return _FOUND, points[0], points[1], points[2], points[3], largest, _no_need()
+        # The failed segments are halved: at their middles, no step.
+        split, split_steps = failed, np.empty(0)
+    return _FOUND, points[0], points[1], points[2], points[3], np.inf, _no_need()
+
+
+@kernel
+def _split_times(times, steps, segments, sample_times, gap):
+    """
+    Return where points split ``segments`` (S,) between ``times``: at their steps, or middles.
+
+    The ``steps`` (sorted) inside a segment, not within ``gap`` of its ends (a step closer is
+    at that point already); a segment without one at its middle, moved to the
+    sample nearest to it if that lies in the middle half of the segment. The steps in order,
+    then the middles.
+    """
+    last = times.size - 2
+    chosen = np.zeros(last + 1, np.bool_)
+    chosen[segments] = True
+    stepped = np.zeros(last + 1, np.bool_)
+    inside = np.zeros(steps.size, np.bool_)
+    for index in range(steps.size):
+        step = steps[index]
+        # The steps lie after the first point (t = 0), none at or after the last.
+        segment = min(np.searchsorted(times, step, side='right') - 1, last)
+        if (segment >= 0 and chosen[segment] and step > times[segment] + gap
+                and step < times[segment + 1] - gap):
+            inside[index] = True
+            stepped[segment] = True
+    halved = segments[~stepped[segments]]
+    middles = 0.5 * (times[halved] + times[halved + 1])
+    nearest = np.empty(halved.size, np.int64)
+    usable = np.empty(halved.size, np.bool_)
+    _nearest_samples(sample_times, middles, times[halved], times[halved + 1], 0.0, nearest,
+                     usable)
+    for index in range(halved.size):
+        if usable[index]:
+            middles[index] = sample_times[nearest[index]]
+    return np.concatenate((steps[inside], middles))
+
+
+@kernel
+def _spaced(times, candidates, gap):
+    """
+    Return the ``candidates`` at least ``gap`` from ``times`` and from each other, sorted.
+
+    In time order, each candidate also keeps the gap to the one accepted before it; none of
+    ``times`` (the points there already).
+    """
+    candidates = np.sort(candidates)
+    kept = np.empty(candidates.size)
+    count, last = 0, -np.inf
+    for index in range(candidates.size):
+        candidate = candidates[index]
+        if index > 0 and candidate == candidates[index - 1]:
+            continue
+        position = np.searchsorted(times, candidate)
+        before = times[max(position - 1, 0)]
+        after = times[min(position, times.size - 1)]
+        if (abs(candidate - before) >= gap and abs(after - candidate) >= gap
+                and candidate - last >= gap):
+            kept[count] = candidate
+            count, last = count + 1, candidate
+    return kept[:count].copy()
+
+
+@kernel
+def _joined(points, added):
+    """Return ``points`` (times, q, q_dot, q_ddot) and ``added`` in one, sorted by time."""
+    times = np.concatenate((points[0], added[0]))
+    order = np.argsort(times, kind='mergesort')
+    return (times[order], np.concatenate((points[1], added[1]))[order],
+            np.concatenate((points[2], added[2]))[order],
+            np.concatenate((points[3], added[3]))[order])
+
+
+@kernel
+def _new_segments(times, earlier):
+    """Return the segments between ``times`` with an end not in ``earlier`` (both sorted)."""
+    last = earlier.size - 1
+    old = np.empty(times.size, np.bool_)
+    for point in range(times.size):
+        old[point] = earlier[min(np.searchsorted(earlier, times[point]), last)] == times[point]
+    return np.flatnonzero(~(old[:-1] & old[1:]))
+
+
 def _planned_table(samples, accept):
     """
     Return the planned table the segment checks read for errors up to ``accept`` [m].
@@ -254,19 +438,46 @@ class _Evaluated:
     """What the motion gave where the compiled search stopped for it, kept for its reruns."""
 
     def __init__(self):
-        # Knots wanted at times (E,) (sorted), placed at times (E,) with q, q_dot, q_ddot.
-        self.states = (np.empty(0), np.empty(0), np.empty((0, 3)), np.empty((0, 3)),
+        # Knots at times (E,) (sorted) with cos q, sin q, q_dot, q_ddot (E, 3).
+        self.states = (np.empty(0), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3)),
                        np.empty((0, 3)))
         # Check times (P,) (sorted) and the planned positions there (P, 3).
         self.planned = (np.empty(0), np.empty((0, 3)))
 
-    def add_states(self, wanted, states):
-        """Keep :meth:`MotionSamples.states` ``states`` of knots wanted at ``wanted``."""
-        self.states = _merged_rows(self.states, (wanted, *states))
+    def add_states(self, times, states):
+        """Keep the :func:`_motion_states` ``states`` of knots at ``times``."""
+        self.states = _merged_rows(self.states, (times, *states))
 
     def add_planned(self, times, positions):
         """Keep the planned ``positions`` (N, 3) at check ``times`` (N,)."""
         self.planned = _merged_rows(self.planned, (times, positions))
+
+    def supplied(self, status, samples, wanted):
+        """
+        Keep what a kernel that stopped with ``status`` needs; return whether it stopped.
+
+        ``_NEEDS_STATES``: the states of knots wanted at ``wanted`` that no sample serves
+        (:func:`_motion_states`); ``_NEEDS_PLANNED``: the planned positions at check times
+        ``wanted``.
+        """
+        if status == _NEEDS_STATES:
+            self.add_states(wanted, _motion_states(samples, wanted))
+        elif status == _NEEDS_PLANNED:
+            self.add_planned(wanted, _checked_state_at(samples.motion, wanted)[0])
+        else:
+            return False
+        return True
+
+
+def _motion_states(samples, times):
+    """
+    Return (cos q, sin q, q_dot, q_ddot) of the motion at ``times`` (K,), as samples have.
+
+    The states of knots no sample serves (:meth:`MotionSamples.states` evaluates the motion at
+    their times), their angles left to the kernel that places them, as a sample's.
+    """
+    return _joint_motion_at(times, *_checked_state_at(samples.motion, times)[:3],
+                            samples.geometry, joint_trig_motion)
 
 
 def _merged_rows(kept, added):
@@ -310,7 +521,7 @@ def _search_knots(initial, source, evaluated, table, planned, geometry, fraction
     status, need, error = _FOUND, _no_need(), 0.0
     if phase == _FROM_START:
         low, high = _cells(initial)
-        status, knots, need = _placed(initial, low, high, context)
+        status, knots, need = _placed(initial, low, high, 0.0, context)
         if status == _FOUND:
             # A rejected segment is halved (_refine): its error is not needed whole.
             index = np.arange(knots[0].size)
@@ -371,28 +582,31 @@ def _no_need():
 
 
 @kernel
-def _placed(wanted, low, high, context):
+def _placed(wanted, low, high, same, context):
     """
     Return (status, knots, need): knots wanted at ``wanted`` (K,), each within its cell.
 
     The rule of :meth:`MotionSamples.states`: the sample nearest to the wanted time if it
-    lies in the middle half of the cell [``low``, ``high``], else the motion's state at the
-    wanted time, taken from the evaluated ones. Knots (times, q, q_dot, q_ddot); status
-    ``_NEEDS_STATES`` with the wanted times and cells evaluated nowhere yet.
+    lies in the middle half of the cell [``low``, ``high``] (without cells, size 0: within
+    ``same`` of the wanted time), else the motion's state at the wanted time, taken from the
+    evaluated ones. Knots (times, q, q_dot, q_ddot); status ``_NEEDS_STATES`` with the wanted
+    times and cells evaluated nowhere yet. ``context`` starts with the ``source`` and
+    ``evaluated`` of :func:`_search_knots`.
     """
     sample_times, cos_q, sin_q, qdot, qddot = context[0]
-    evaluated_wanted, evaluated_times, evaluated_q, evaluated_qdot, evaluated_qddot = context[1]
+    evaluated_times, evaluated_cos_q, evaluated_sin_q, evaluated_qdot, evaluated_qddot = context[1]
     count = wanted.size
     nearest = np.empty(count, np.int64)
     usable = np.empty(count, np.bool_)
-    _nearest_samples(sample_times, wanted, low, high, 0.0, nearest, usable)
+    _nearest_samples(sample_times, wanted, low, high, same, nearest, usable)
     times = np.empty(count)
     positions, velocities, accelerations = (np.empty((count, 3)), np.empty((count, 3)),
                                             np.empty((count, 3)))
     missing = np.zeros(count, np.bool_)
     found, searched = 0, np.inf
     # Element by element: a row view (qdot[row]) counts its array's references up and down.
-    # A sample's q is the atan2 of its cos q and sin q, as :func:`joint_angles` computes it.
+    # A knot's q is the atan2 of its cos q and sin q (a sample's, or an evaluated one's), as
+    # :func:`joint_angles` computes it.
     for knot in range(count):
         if usable[knot]:
             row = nearest[knot]
@@ -403,20 +617,22 @@ def _placed(wanted, low, high, context):
                 accelerations[knot, axis] = qddot[row, axis]
             continue
         # Wanted in order (as a rule): each search continues from the one before.
-        row = _sorted_position(evaluated_wanted, wanted[knot],
+        row = _sorted_position(evaluated_times, wanted[knot],
                                found if wanted[knot] >= searched else 0)
         found, searched = row, wanted[knot]
-        if row < evaluated_wanted.size and evaluated_wanted[row] == wanted[knot]:
+        if row < evaluated_times.size and evaluated_times[row] == wanted[knot]:
             times[knot] = evaluated_times[row]
             for axis in range(3):
-                positions[knot, axis] = evaluated_q[row, axis]
+                positions[knot, axis] = math.atan2(evaluated_sin_q[row, axis],
+                                                   evaluated_cos_q[row, axis])
                 velocities[knot, axis] = evaluated_qdot[row, axis]
                 accelerations[knot, axis] = evaluated_qddot[row, axis]
         else:
             missing[knot] = True
     knots = (times, positions, velocities, accelerations)
     if missing.any():
-        return _NEEDS_STATES, knots, (wanted[missing], low[missing], high[missing])
+        cells = (low[missing], high[missing]) if low.size else (low, high)
+        return _NEEDS_STATES, knots, (wanted[missing], cells[0], cells[1])
     return _FOUND, knots, _no_need()
 
 
@@ -574,7 +790,7 @@ def _refine(knots, errors, context, accept, shortest):
                     (np.full(1, times[worst]), whole, np.empty(0)))
         start = np.flatnonzero(rejected)
         status, middle, need = _placed(0.5 * (times[start] + times[start + 1]),
-                                       times[start], times[start + 1], context)
+                                       times[start], times[start + 1], 0.0, context)
         if status != _FOUND:
             return status, knots, errors, need
         # Each middle goes after its segment's start; the two halves are new segments.
@@ -681,7 +897,7 @@ def _replace(knots, errors, context, accept, shortest, resumed):
         state = (trial_number, target, 1 if pruned else 0, times, weights)
         wanted = _equidistributed(times, weights, target)
         low, high = _cells(wanted)
-        status, trial, need = _placed(wanted, low, high, context)
+        status, trial, need = _placed(wanted, low, high, 0.0, context)
         if status != _FOUND:
             return status, knots, errors, need, 0.0, state
         trial_times = trial[0]

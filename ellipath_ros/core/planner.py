@@ -43,7 +43,7 @@ from .kinematics import (
     _ASSEMBLED, _forward_point, _kernel_geometry, DeltaGeometry, forward_kinematics,
     inverse_kinematics, joint_speed_caps, joint_velocities, JointLimits,
     largest_magnitude_per_row)
-from .knots import minimal_knots, segment_deviations
+from .knots import _split_segments, minimal_knots
 from .limits import CartesianLimits
 from .motion import TimedMotion
 from .settings import CORE_NAMES, default_of, SETTING_BY_NAME, validate, validate_fields
@@ -74,7 +74,9 @@ _JERK_STEP_SHARE = 0.1
 _KNOT_MIN_GAP = 1e-5
 _KNOT_ROUNDS = 8
 # A segment that added points made and that fails the knot search's own check is halved, up
-# to this many times (see _mended).
+# to this many times: a point changes the quintics on both sides of it, closer to the motion as
+# a rule, not always (bench seed 11, pair 831: a point at a jerk step near the end of a 44 ms
+# segment left a 40 ms one deviating 120 um where the knots' did 75 um, tolerance 100 um).
 _MEND_HALVINGS = 4
 # Below this share above the planned motion's peak, an executed peak is the motion's own.
 _QUINTIC_EXCESS = 1e-4
@@ -422,54 +424,6 @@ def _interpolation_error(motion, trajectory, config, per_segment=8):
     return float(np.linalg.norm(tcp - motion.state_at(t)[0], axis=1).max())
 
 
-def _mended(motion, trajectory, samples, config, earlier_times):
-    """
-    Return ``trajectory`` with the segments that its new points make within the tolerance.
-
-    A point added inside a knot segment changes the quintics on both sides of it: closer to
-    the motion as a rule, but not always (bench seed 11, pair 831: a point at a jerk step
-    near the end of a 44 ms segment left a 40 ms one that deviates 120 um where the knots'
-    deviated 75 um, tolerance 100 um). Each segment with an end not in ``earlier_times``
-    (the points before this round, whose segments were checked) is checked as the knot search
-    checks its own (:func:`segment_deviations`, accepted up to ``_SAFETY`` of the tolerance)
-    and, if it fails, gets a point at its middle (:func:`_middles`), up to ``_MEND_HALVINGS``
-    times.
-
-    Returns
-    -------
-    tuple of (JointTrajectoryData, float)
-        The points, and the largest deviation found on those segments [m] (inf if one still
-        fails after the halvings).
-
-    """
-    accept = _SAFETY * config.knot_tolerance
-    for halving in range(_MEND_HALVINGS + 1):
-        times = trajectory.time_from_start
-        # Both sorted: each time's place among the earlier ones says whether it is one.
-        earlier = earlier_times[np.minimum(np.searchsorted(earlier_times, times),
-                                           earlier_times.size - 1)] == times
-        made = np.flatnonzero(~(earlier[:-1] & earlier[1:]))
-        deviations = segment_deviations(samples, trajectory, made, config.knot_tolerance)
-        failed = made[deviations > accept]
-        if failed.size == 0:
-            return trajectory, float(deviations.max(initial=0.0))
-        if halving == _MEND_HALVINGS:
-            return trajectory, math.inf
-        trajectory = _with_points(trajectory, samples,
-                                  _spaced(times, _middles(samples, times, failed)))
-
-
-def _middles(samples, times, segments):
-    """
-    Return the times [s] of points at the middles of ``segments`` (S,) between ``times``.
-
-    The sample nearest to a middle if it lies in the middle half of its segment (its state is
-    known), else the middle itself (:meth:`MotionSamples.states`).
-    """
-    return samples.states(0.5 * (times[segments] + times[segments + 1]), times[segments],
-                          times[segments + 1])[0]
-
-
 def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_clearance=None,
                   leg='transfer'):
     """
@@ -675,47 +629,6 @@ def _executed_clearance(knots, positions, velocities, accelerations, time, c, se
     return clearance(x_, y_, z_, radius, z_min, z_max, boxes, tolerance)
 
 
-def _spaced(times, added):
-    """
-    Return the times of ``added`` at least ``_KNOT_MIN_GAP`` from ``times`` and each other.
-
-    Sorted; none of ``times`` (the points there already).
-    """
-    return _spaced_times(times, np.sort(np.asarray(added, dtype=float)), _KNOT_MIN_GAP)
-
-
-@kernel
-def _spaced_times(times, candidates, gap):
-    """Return :func:`_spaced` of the sorted ``candidates`` (its minimal distance ``gap``)."""
-    kept = np.empty(candidates.size)
-    count, last = 0, -np.inf
-    for index in range(candidates.size):
-        candidate = candidates[index]
-        if index > 0 and candidate == candidates[index - 1]:
-            continue
-        position = np.searchsorted(times, candidate)
-        before = times[max(position - 1, 0)]
-        after = times[min(position, times.size - 1)]
-        # In time order, each candidate also keeps the gap to the one accepted before it.
-        if (abs(candidate - before) >= gap and abs(after - candidate) >= gap
-                and candidate - last >= gap):
-            kept[count] = candidate
-            count, last = count + 1, candidate
-    return kept[:count].copy()
-
-
-def _with_points(trajectory, samples, times):
-    """Return ``trajectory`` with points added at ``times`` (sorted, none of its own)."""
-    if times.size == 0:
-        return trajectory
-    added = samples.states(times)
-    order = np.argsort(np.concatenate((trajectory.time_from_start, added[0])), kind='stable')
-    return JointTrajectoryData(trajectory.joint_names, *(
-        np.concatenate((old, new))[order] for old, new in zip(
-            (trajectory.time_from_start, trajectory.positions, trajectory.velocities,
-             trajectory.accelerations), added)))
-
-
 def _slowed_points(trajectory, table, factor):
     """Return ``trajectory`` and its executed ``table`` slowed down by ``factor``."""
     slowed = JointTrajectoryData(
@@ -765,10 +678,11 @@ def _joint_points(motion, config, bounds, samples=None):
     lowers an exceeded peak. Of the knots and each round, the points whose executed peaks
     need the least uniform slow-down (:func:`_excess_factor`) are returned: a round may lower
     one exceeded peak and raise another. The segments that a round's points make are kept
-    within the knot tolerance (:func:`_mended`); a round whose segments still fail is not
-    returned. Samples output is checked, not changed. The table (S, 5) has the peaks of each
-    segment in ``EXECUTED_KEYS`` order. ``samples`` (:class:`MotionSamples` of ``motion``) are
-    taken when given, else made here.
+    within the knot tolerance (halved up to ``_MEND_HALVINGS`` times, in the same compiled
+    call as they are made: :func:`~ellipath_ros.core.knots._split_segments`); a round whose
+    segments still fail is not returned. Samples output is checked, not changed. The table
+    (S, 5) has the peaks of each segment in ``EXECUTED_KEYS`` order. ``samples``
+    (:class:`MotionSamples` of ``motion``) are taken when given, else made here.
     """
     geometry = config.geometry
     if config.output_mode == 'samples':
@@ -797,13 +711,8 @@ def _joint_points(motion, config, bounds, samples=None):
             # Only a leg with a broken segment needs its jerk steps.
             step_times, step_sizes = motion.jerk_steps()
             steps = step_times[step_sizes >= _JERK_STEP_SHARE * config.limits.max_jerk]
-        added, halved = _steps_inside(steps, times, broken)
-        if halved.size:
-            # The middle of a segment without a step.
-            added = np.concatenate((added, _middles(samples, times, halved)))
-        trajectory, made = _mended(
-            motion, _with_points(trajectory, samples, _spaced(times, added)), samples, config,
-            times)
+        trajectory, made = _split_segments(samples, trajectory, steps, broken,
+                                           config.knot_tolerance, _KNOT_MIN_GAP, _MEND_HALVINGS)
         deviation = max(deviation, made)
         table = executed_table(trajectory, geometry, (times, table))
         ratios = table.max(axis=0) / bounds
@@ -815,27 +724,6 @@ def _joint_points(motion, config, bounds, samples=None):
             break
         worst = ratios
     return least[1], least[3], least[2]
-
-
-def _steps_inside(steps, times, broken):
-    """
-    Return the jerk ``steps`` (sorted) inside the ``broken`` segments, and those without one.
-
-    The segments are those between ``times``; a step closer than ``_KNOT_MIN_GAP`` to an
-    end of its segment is at that point already. The same steps and segments as masks of
-    the steps per broken segment give, in one pass over the steps.
-    """
-    last = times.size - 2
-    # Each step's segment: the steps lie after the first point (t = 0); one at or after the
-    # last point (none is) would be outside the last segment.
-    segment = np.minimum(np.searchsorted(times, steps, side='right') - 1, last)
-    chosen = np.zeros(last + 1, bool)
-    chosen[broken] = True
-    inside = chosen[segment] & (steps > times[segment] + _KNOT_MIN_GAP) & (
-        steps < times[segment + 1] - _KNOT_MIN_GAP)
-    found = np.zeros(last + 1, bool)
-    found[segment[inside]] = True
-    return steps[inside], broken[~found[broken]]
 
 
 def _hold(trajectory, seconds):
