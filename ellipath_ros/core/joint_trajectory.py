@@ -45,7 +45,7 @@ from ellipath_ros.core.kinematics import _row
 from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_angles
 from ellipath_ros.core.kinematics import joint_motion
-from ellipath_ros.core.kinematics import joint_trig_motion
+from ellipath_ros.core.kinematics import joint_trig_peaks
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -793,9 +793,11 @@ class MotionSamples:
         self.times = times
         self.position, self.velocity, self.acceleration, self.jerk = tcp
         position, velocity, acceleration = tcp[:3]
+        self._joint_peaks = None
         if joints is None:
-            joints = _joint_motion_at(times, position, velocity, acceleration, geometry,
-                                      joint_trig_motion)
+            *joints, peak_velocity, peak_accel = _joint_motion_at(
+                times, position, velocity, acceleration, geometry, joint_trig_peaks)
+            self._joint_peaks = peak_velocity, peak_accel
         # The joint angles are computed only where they are read (their atan2 took more than
         # half of the joint states' time; the knot search reads the rows of its knots only).
         self.cos_q, self.sin_q, self.qdot, self.qddot = joints
@@ -842,7 +844,11 @@ class MotionSamples:
 
     def joint_peaks(self):
         """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
-        return float(np.abs(self.qdot).max()), float(np.abs(self.qddot).max())
+        if self._joint_peaks is None:
+            # Joint states given: the peaks were not found as they were made.
+            self._joint_peaks = (float(np.abs(self.qdot).max()),
+                                 float(np.abs(self.qddot).max()))
+        return self._joint_peaks
 
     def segment_peaks(self, times):
         """

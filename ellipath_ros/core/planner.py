@@ -393,19 +393,17 @@ def _check_reach_and_speed_cap(path, config):
     count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
     position, tangent = path.rows_at_lengths(s)[:2]
-    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
-    points, directions = np.empty((count + 1, 3)), np.zeros((count + 1, 3))
-    points[:-1], points[-1], directions[:-1] = position.T, path.apex, tangent.T
     limit = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity
-    caps = joint_speed_caps(points, directions, config.geometry, limit)
+    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
+    caps = joint_speed_caps(position, tangent, config.geometry, limit, rows=True,
+                            extra=path.apex)
     if caps is None:
         # Named as always: the first of the samples and the apex out of reach, else the first
         # sample at a singularity.
+        points = np.vstack((position.T, path.apex))
         q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
-        dq_ds = joint_velocities(points[:-1], q, directions[:-1], config.geometry)
+        dq_ds = joint_velocities(points[:-1], q, tangent.T, config.geometry)
         caps = limit / np.maximum(largest_magnitude_per_row(dq_ds), 1e-12)
-    else:
-        caps = caps[:-1]
 
     def cap(query):
         return np.interp(query, s, caps)
