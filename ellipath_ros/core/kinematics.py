@@ -544,7 +544,7 @@ def joint_trig_peaks(points, velocities, accelerations, geometry, *, name='point
 def _trig_rows(points, velocities, accelerations, geometry):
     """Return :func:`_joint_trig_rows`' failure (row -1: none) and the results it makes."""
     cos_q, sin_q, qdot, qddot = (np.empty(points.shape) for _ in range(4))
-    peaks = np.zeros(2)
+    peaks = np.empty(2)
     row, status, arm, value = _joint_trig_rows(
         points, velocities, accelerations, *_joint_geometry(geometry), _limit_trig(geometry),
         cos_q, sin_q, qdot, qddot, peaks)
@@ -1095,12 +1095,13 @@ def _joint_trig_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, 
     """
     Per row, :func:`joint_trig_motion`'s IK (cos q, sin q) and rates; their peaks in ``peaks``.
 
-    ``peaks`` (2,), zeros on entry, gets the largest |q_dot| and |q_ddot| (NaN if one is).
+    ``peaks`` (2,) gets the largest |q_dot| and |q_ddot| (NaN if one is) of all rows.
     Stops at the first row that fails (out of reach, beyond a joint limit, at an IK
     singularity, a non-finite velocity or acceleration) and returns (row, status, arm,
     value) for :func:`_joint_failure`; row -1 when every row succeeds.
     """
     radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
+    peak_velocity, peak_accel = 0.0, 0.0
     for row in range(points.shape[0]):
         point = _row(points, row)
         status, arm, value, cosines, sines = _ik_trig_point(
@@ -1121,12 +1122,19 @@ def _joint_trig_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, 
             return row, _IK_SINGULAR, arm, diagonal
         _write_row(qdot, row, rates[0])
         _write_row(qddot, row, rates[1])
-        for kind in range(2):
-            for magnitude in (abs(rates[kind][0]), abs(rates[kind][1]), abs(rates[kind][2])):
-                # A NaN, once found, stays (NumPy's max).
-                if peaks[kind] == peaks[kind] and not magnitude <= peaks[kind]:
-                    peaks[kind] = magnitude
+        peak_velocity = _larger_magnitude(peak_velocity, rates[0])
+        peak_accel = _larger_magnitude(peak_accel, rates[1])
+    peaks[0], peaks[1] = peak_velocity, peak_accel
     return -1, _IK_OK, 0, 0.0
+
+
+@kernel(inline=True)
+def _larger_magnitude(peak, rates):
+    """Return the largest of ``peak`` and the magnitudes of ``rates`` (a NaN stays, as in max)."""
+    for magnitude in (abs(rates[0]), abs(rates[1]), abs(rates[2])):
+        if peak == peak and not magnitude <= peak:
+            peak = magnitude
+    return peak
 
 
 @kernel
