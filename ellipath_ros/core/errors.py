@@ -125,6 +125,8 @@ def require_point(name, value):
     if point.shape != (3,):
         raise InvalidInputError(
             f'{name}: expected 3 coordinates (x, y, z), got shape {point.shape}')
-    if not np.all(np.isfinite(point)):
-        raise InvalidInputError(f'{name}: expected finite coordinates, got {point.tolist()}')
+    # Three floats tested one by one: np.all(np.isfinite(point)) cost ten times as much.
+    x, y, z = point.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise InvalidInputError(f'{name}: expected finite coordinates, got {[x, y, z]}')
     return point

@@ -45,7 +45,7 @@ from ellipath_ros.core.kinematics import _row
 from ellipath_ros.core.kinematics import _tcp_state
 from ellipath_ros.core.kinematics import joint_angles
 from ellipath_ros.core.kinematics import joint_motion
-from ellipath_ros.core.kinematics import joint_trig_motion
+from ellipath_ros.core.kinematics import joint_trig_peaks
 from ellipath_ros.core.kinematics import tcp_derivatives
 import numpy as np
 
@@ -194,7 +194,7 @@ def _check_structure(traj, error):
     if _float_point_arrays(values):
         # Float arrays, as the planner makes them: their copies (C order and writeable, the
         # one array type the kernel is compiled for) checked in one compiled pass.
-        arrays = [np.array(value, order='C') for value in values]
+        arrays = [value.copy() for value in values]
         if _valid_points(*arrays):
             for array in arrays:
                 array.setflags(write=False)
@@ -232,13 +232,24 @@ def _float_point_arrays(values):
     Return whether ``values`` (``_POINT_FIELDS`` order) are float arrays of the right shapes.
 
     Those are checked in one compiled pass (:func:`_valid_points`); anything else, and any
-    that fails it, by the checks that name the problem.
+    that fails it, by the checks that name the problem. Plain NumPy arrays (a subclass's
+    copy would keep its class) of NumPy's own float dtype, tested by identity (a comparison
+    with ``np.float64`` costs three times as much; another float dtype object takes the
+    other checks, to the same result).
     """
     times = values[0]
-    return (all(isinstance(value, np.ndarray) and value.dtype == np.float64
-                for value in values)
-            and times.ndim == 1 and times.size > 0
-            and all(value.shape == (times.size, 3) for value in values[1:]))
+    if not (type(times) is np.ndarray and times.dtype is _FLOAT and times.ndim == 1
+            and times.size > 0):
+        return False
+    shape = (times.size, 3)
+    for value in values[1:]:
+        if not (type(value) is np.ndarray and value.dtype is _FLOAT
+                and value.shape == shape):
+            return False
+    return True
+
+
+_FLOAT = np.dtype(np.float64)
 
 
 @kernel
@@ -793,9 +804,11 @@ class MotionSamples:
         self.times = times
         self.position, self.velocity, self.acceleration, self.jerk = tcp
         position, velocity, acceleration = tcp[:3]
+        self._joint_peaks = None
         if joints is None:
-            joints = _joint_motion_at(times, position, velocity, acceleration, geometry,
-                                      joint_trig_motion)
+            *joints, peak_velocity, peak_accel = _joint_motion_at(
+                times, position, velocity, acceleration, geometry, joint_trig_peaks)
+            self._joint_peaks = peak_velocity, peak_accel
         # The joint angles are computed only where they are read (their atan2 took more than
         # half of the joint states' time; the knot search reads the rows of its knots only).
         self.cos_q, self.sin_q, self.qdot, self.qddot = joints
@@ -842,7 +855,11 @@ class MotionSamples:
 
     def joint_peaks(self):
         """Return the largest |q_dot| [rad/s] and |q_ddot| [rad/s^2] of the samples."""
-        return float(np.abs(self.qdot).max()), float(np.abs(self.qddot).max())
+        if self._joint_peaks is None:
+            # Joint states given: the peaks were not found as they were made.
+            self._joint_peaks = (float(np.abs(self.qdot).max()),
+                                 float(np.abs(self.qddot).max()))
+        return self._joint_peaks
 
     def segment_peaks(self, times):
         """

@@ -214,7 +214,8 @@ def _ik(points, geometry):
     q = np.empty(points.shape)
     status = np.empty(points.shape[0], dtype=np.int8)
     arms = np.empty(points.shape[0], dtype=np.int8)
-    _ik_rows(np.ascontiguousarray(points), *_joint_geometry(geometry)[:9], q, status, arms)
+    _ik_rows(np.ascontiguousarray(points), *_joint_geometry(geometry)[:9],
+             _limit_trig(geometry), q, status, arms)
     return q, status, arms
 
 
@@ -508,21 +509,47 @@ def joint_trig_motion(points, velocities, accelerations, geometry, *, name='poin
     away from them (:func:`_inside_joint_limits`). The inputs, the errors and their order
     are :func:`joint_motion`'s; the results are always (N, 3).
     """
+    return joint_trig_peaks(points, velocities, accelerations, geometry, name=name)[:4]
+
+
+def joint_trig_peaks(points, velocities, accelerations, geometry, *, name='points'):
+    """
+    Return :func:`joint_trig_motion` and the largest |q_dot| and |q_ddot|, in one pass.
+
+    The peaks, floats, come last: (cos q, sin q, q_dot, q_ddot, peak q_dot, peak q_ddot).
+    Float (N, 3) arrays in C order, as the planner makes them, go to the compiled pass as
+    they are, which stops at a non-finite rate (the IK at a non-finite point); anything else,
+    and any row that fails, take the checks that name the problem first.
+    """
+    arrays = (points, velocities, accelerations)
+    if all(isinstance(array, np.ndarray) and array.dtype == np.float64 and array.ndim == 2
+           and array.shape[1] == 3 and array.flags.c_contiguous for array in arrays) and (
+               points.shape == velocities.shape == accelerations.shape):
+        row, _, _, _, results = _trig_rows(*arrays, geometry)
+        if row < 0:
+            return results
     points, _ = _as_rows(name, points)
     converted = []
     for extra, extra_name in ((velocities, 'velocities'), (accelerations, 'accelerations')):
         array, _ = _as_rows(extra_name, extra)
         _same_shape(extra_name, array, points, name)
         converted.append(array)
-    velocities, accelerations = converted
-    cos_q, sin_q, qdot, qddot = (np.empty(points.shape) for _ in range(4))
-    row, status, arm, value = _joint_trig_rows(
-        np.ascontiguousarray(points), np.ascontiguousarray(velocities),
-        np.ascontiguousarray(accelerations), *_joint_geometry(geometry), _limit_trig(geometry),
-        cos_q, sin_q, qdot, qddot)
+    row, status, arm, value, results = _trig_rows(
+        *(np.ascontiguousarray(array) for array in (points, *converted)), geometry)
     if row >= 0:
         raise _joint_failure(points, row, status, arm, value, geometry, name)
-    return cos_q, sin_q, qdot, qddot
+    return results
+
+
+def _trig_rows(points, velocities, accelerations, geometry):
+    """Return :func:`_joint_trig_rows`' failure (row -1: none) and the results it makes."""
+    cos_q, sin_q, qdot, qddot = (np.empty(points.shape) for _ in range(4))
+    peaks = np.empty(2)
+    row, status, arm, value = _joint_trig_rows(
+        points, velocities, accelerations, *_joint_geometry(geometry), _limit_trig(geometry),
+        cos_q, sin_q, qdot, qddot, peaks)
+    return row, status, arm, value, (cos_q, sin_q, qdot, qddot, float(peaks[0]),
+                                     float(peaks[1]))
 
 
 def joint_angles(cos_q, sin_q):
@@ -533,7 +560,7 @@ def joint_angles(cos_q, sin_q):
     return q
 
 
-def joint_speed_caps(points, directions, geometry, limit):
+def joint_speed_caps(points, directions, geometry, limit, *, rows=False, extra=None):
     """
     Return ``limit / max_i |dq_i/ds|`` (N,) along (N, 3) unit ``directions``, or None.
 
@@ -542,13 +569,19 @@ def joint_speed_caps(points, directions, geometry, limit):
     Nothing is raised: a point out of reach, beyond a joint limit or at an IK singularity
     gives None, for the caller to name it its own way. The joint angles themselves are not
     computed: a point's limits are judged from cos q and sin q, with an ``atan2`` only near
-    a limit (:func:`_inside_joint_limits`).
+    a limit (:func:`_inside_joint_limits`). With ``rows``, ``points`` and ``directions`` are
+    float arrays of coordinate rows (3, N) in C order (as
+    :meth:`~ellipath_ros.core.geometry.PickPlacePath.rows_at_lengths` makes them), taken
+    as they are. ``extra`` (3,), a finite point that must be reachable too (else None), has
+    no cap.
     """
-    points = np.ascontiguousarray(points, dtype=float)
-    caps = np.empty(points.shape[0])
-    assembled = _speed_cap_rows(points, np.ascontiguousarray(directions, dtype=float),
-                                *_joint_geometry(geometry), _limit_trig(geometry),
-                                float(limit), caps)
+    if not rows:
+        points, directions = (np.ascontiguousarray(np.asarray(values, dtype=float).T)
+                              for values in (points, directions))
+    caps = np.empty(points.shape[1])
+    extra = (math.nan,) * 3 if extra is None else tuple(np.asarray(extra, dtype=float).tolist())
+    assembled = _speed_cap_rows(points, directions, extra, *_joint_geometry(geometry),
+                                _limit_trig(geometry), float(limit), caps)
     return caps if assembled else None
 
 
@@ -576,9 +609,9 @@ def _joint_failure(points, row, status, arm, value, geometry, name):
     """
     Return the error naming row ``row`` of ``points`` that inverse kinematics cannot serve.
 
-    The one naming of the kernels' failures (:func:`_ik_point`, :func:`_rate_point`): ``status``
-    is their code, ``arm`` the arm that fails and ``value`` its joint angle (``_IK_LIMIT``)
-    or ``s_i . b_i`` (``_IK_SINGULAR``).
+    The one naming of the kernels' failures (:func:`_ik_trig_point`, :func:`_rate_point`):
+    ``status`` is their code, ``arm`` the arm that fails and ``value`` its joint angle
+    (``_IK_LIMIT``) or ``s_i . b_i`` (``_IK_SINGULAR``).
     """
     point = points[row]
     where = f'{name}[{row}]: expected a point reachable by the robot, got {_fmt(point)} m'
@@ -856,9 +889,11 @@ def _solve(rhs0, rhs1, rhs2, columns, inverse_det):
             (rhs0 * first[2] + rhs1 * second[2] + rhs2 * third[2]) * inverse_det)
 
 
-# Status codes of inverse kinematics of a row (:func:`_ik_point`, :func:`_rate_point`), in
+# Status codes of inverse kinematics of a row (:func:`_ik_trig_point`, :func:`_rate_point`), in
 # the order the errors are reported.
 _IK_OK, _IK_ABOVE, _IK_OUTSIDE, _IK_LIMIT, _IK_SINGULAR = range(5)
+# A row of :func:`_joint_trig_rows` with a non-finite rate (never one that passed _as_rows).
+_NOT_FINITE = 5
 
 
 # The row kernels below take each point's coordinates and return its results as plain floats
@@ -885,17 +920,8 @@ def _write_row(values, row, entries):
 
 
 @kernel(inline=True)
-def _ik_arm(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
-    """Return (in the arm's sphere, cos q, sin q, q) of one arm of :func:`_ik_point`."""
-    inside, cos_q, sin_q = _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq)
-    if not inside:
-        return False, 0.0, 0.0, 0.0
-    return True, cos_q, sin_q, math.atan2(sin_q, cos_q)
-
-
-@kernel(inline=True)
 def _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
-    """Return (in the arm's sphere, cos q, sin q) of :func:`_ik_arm`, without q's atan2."""
+    """Return (in the arm's sphere, cos q, sin q) of one arm of :func:`_ik_trig_point`."""
     u = x * rx + y * ry + -offset
     w = x * tx + y * ty
     g = u * u + w * w + z * z + upper_sq - fore_sq
@@ -907,62 +933,23 @@ def _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq):
     return True, (u * g - z * root) * scale, -(z * g + u * root) * scale
 
 
-@kernel(inline=True)
-def _ik_point(x, y, z, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max):
-    """
-    Elbow-out IK of the point (x, y, z); return (status, failing arm, q, cos q, sin q).
-
-    ``q``, ``cos q`` and ``sin q`` are 3-tuples (arm 0, 1, 2; zeros from a failing arm on),
-    cos q and sin q from the same quantities as q, without a trigonometric call: with
-    ``rho^2 = u^2 + z^2`` and ``sqrt(D^2 + G^2) = 2 L1 rho``,
-    ``cos q = (u G - z sqrt(D)) / (2 L1 rho^2)`` and
-    ``sin q = -(z G + u sqrt(D)) / (2 L1 rho^2)``.
-
-    The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
-    tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
-    ``E cos q + F sin q + G = 0`` with ``E = -2 L1 u``, ``F = 2 L1 z`` and
-    ``G = u^2 + w^2 + z^2 + L1^2 - L2^2``. The half-angle substitution turns it into the
-    classic quadratic ``(G - E) tau^2 + 2 F tau + (G + E) = 0`` in ``tau = tan(q / 2)``, whose
-    discriminant is ``D = E^2 + F^2 - G^2``. Its two roots are written here in the equivalent
-    atan2 form ``q = -atan2(z, u) -+ atan2(sqrt(D), G)``, which needs no division by
-    ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
-    from the actuator axis to the effector joint). Checked in the order the errors are
-    named: above the base (or not finite), outside an arm's sphere, beyond a joint limit.
-    """
-    zero = (0.0, 0.0, 0.0)
-    if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
-        return _IK_ABOVE, 0, zero, zero, zero
-    fore_sq = forearm * forearm
-    upper_sq = upper * upper
-    inside0, cos0, sin0, q0 = _ik_arm(x, y, z, rx[0], ry[0], tx[0], ty[0], offset, upper,
-                                      fore_sq, upper_sq)
-    if not inside0:
-        return _IK_OUTSIDE, 0, zero, zero, zero
-    inside1, cos1, sin1, q1 = _ik_arm(x, y, z, rx[1], ry[1], tx[1], ty[1], offset, upper,
-                                      fore_sq, upper_sq)
-    if not inside1:
-        return _IK_OUTSIDE, 1, zero, zero, zero
-    inside2, cos2, sin2, q2 = _ik_arm(x, y, z, rx[2], ry[2], tx[2], ty[2], offset, upper,
-                                      fore_sq, upper_sq)
-    if not inside2:
-        return _IK_OUTSIDE, 2, zero, zero, zero
-    q, cos_q, sin_q = (q0, q1, q2), (cos0, cos1, cos2), (sin0, sin1, sin2)
-    for arm in range(3):
-        if q[arm] < joint_min or q[arm] > joint_max:
-            return _IK_LIMIT, arm, q, cos_q, sin_q
-    return _IK_OK, 0, q, cos_q, sin_q
-
-
 @kernel
-def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, q, status,
-             arms):
-    """:func:`_ik_point` of every row into ``q``: ``status`` and ``arms`` (N,) its result."""
+def _ik_rows(points, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max, limit_trig,
+             q, status, arms):
+    """
+    :func:`_ik_trig_point` of every row: ``status`` and ``arms`` (N,) its result, q in ``q``.
+
+    q is ``atan2(sin q, cos q)`` of each arm where every arm is in reach (a row beyond a
+    joint limit too), else 0.
+    """
     radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
     for row in range(points.shape[0]):
-        status[row], arms[row], angles, _, _ = _ik_point(
+        status[row], arms[row], _, cosines, sines = _ik_trig_point(
             points[row, 0], points[row, 1], points[row, 2], radial_x, radial_y, tangent_x,
-            tangent_y, offset, upper, forearm, joint_min, joint_max)
-        _write_row(q, row, angles)
+            tangent_y, offset, upper, forearm, joint_min, joint_max, limit_trig)
+        for arm in range(3):
+            q[row, arm] = (math.atan2(sines[arm], cosines[arm])
+                           if status[row] == _IK_OK or status[row] == _IK_LIMIT else 0.0)
 
 
 @kernel(inline=True)
@@ -1057,10 +1044,25 @@ def _rate_rows(points, velocities, accelerations, q, rx, ry, offset, upper, sing
 def _ik_trig_point(x, y, z, rx, ry, tx, ty, offset, upper, forearm, joint_min, joint_max,
                    limit_trig):
     """
-    :func:`_ik_point` without the atan2 of q: return (status, failing arm, value, cos q, sin q).
+    Elbow-out IK of the point (x, y, z); return (status, failing arm, value, cos q, sin q).
 
-    The same checks in the same order, a joint limit judged by :func:`_inside_joint_limits`;
-    ``value`` is the failing arm's q (``_IK_LIMIT``), else 0.
+    ``cos q`` and ``sin q`` are 3-tuples (arm 0, 1, 2; zeros where an arm is out of reach),
+    without a trigonometric call: with ``rho^2 = u^2 + z^2`` and
+    ``sqrt(D^2 + G^2) = 2 L1 rho``, ``cos q = (u G - z sqrt(D)) / (2 L1 rho^2)`` and
+    ``sin q = -(z G + u sqrt(D)) / (2 L1 rho^2)``; q is their ``atan2`` (here only for a
+    joint limit near it, :func:`_inside_joint_limits`). ``value`` is the failing arm's q
+    (``_IK_LIMIT``), else 0.
+
+    The constraint of arm i, written in its vertical plane with ``u`` the radial and ``w`` the
+    tangential coordinate of ``C_i - A_i`` and ``z`` the height, is
+    ``E cos q + F sin q + G = 0`` with ``E = -2 L1 u``, ``F = 2 L1 z`` and
+    ``G = u^2 + w^2 + z^2 + L1^2 - L2^2``. The half-angle substitution turns it into the
+    classic quadratic ``(G - E) tau^2 + 2 F tau + (G + E) = 0`` in ``tau = tan(q / 2)``, whose
+    discriminant is ``D = E^2 + F^2 - G^2``. Its two roots are written here in the equivalent
+    atan2 form ``q = -atan2(z, u) -+ atan2(sqrt(D), G)``, which needs no division by
+    ``G - E``; the minus sign is the elbow-out branch (elbow on the outer side of the line
+    from the actuator axis to the effector joint). Checked in the order the errors are
+    named: above the base (or not finite), outside an arm's sphere, beyond a joint limit.
     """
     zero = (0.0, 0.0, 0.0)
     if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
@@ -1089,15 +1091,17 @@ def _ik_trig_point(x, y, z, rx, ry, tx, ty, offset, upper, forearm, joint_min, j
 @kernel
 def _joint_trig_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, upper, forearm,
                      joint_min, joint_max, singular_diagonal, limit_trig, cos_q, sin_q, qdot,
-                     qddot):
+                     qddot, peaks):
     """
-    Per row, :func:`joint_trig_motion`'s IK (cos q, sin q) and rates.
+    Per row, :func:`joint_trig_motion`'s IK (cos q, sin q) and rates; their peaks in ``peaks``.
 
+    ``peaks`` (2,) gets the largest |q_dot| and |q_ddot| (NaN if one is) of all rows.
     Stops at the first row that fails (out of reach, beyond a joint limit, at an IK
-    singularity) and returns (row, status, arm, value) for :func:`_joint_failure`;
-    row -1 when every row succeeds.
+    singularity, a non-finite velocity or acceleration) and returns (row, status, arm,
+    value) for :func:`_joint_failure`; row -1 when every row succeeds.
     """
     radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
+    peak_velocity, peak_accel = 0.0, 0.0
     for row in range(points.shape[0]):
         point = _row(points, row)
         status, arm, value, cosines, sines = _ik_trig_point(
@@ -1105,21 +1109,37 @@ def _joint_trig_rows(points, velocities, accelerations, rx, ry, tx, ty, offset, 
             upper, forearm, joint_min, joint_max, limit_trig)
         if status != _IK_OK:
             return row, status, arm, value
+        velocity, acceleration = _row(velocities, row), _row(accelerations, row)
+        for axis in range(3):
+            if not (math.isfinite(velocity[axis]) and math.isfinite(acceleration[axis])):
+                return row, _NOT_FINITE, 0, 0.0
         _write_row(cos_q, row, cosines)
         _write_row(sin_q, row, sines)
         arm, diagonal, rates = _rate_point(
-            point, _row(velocities, row), _row(accelerations, row), cosines, sines, radial_x,
-            radial_y, offset, upper, singular_diagonal, (0.0, 0.0, 0.0), False)
+            point, velocity, acceleration, cosines, sines, radial_x, radial_y, offset, upper,
+            singular_diagonal, (0.0, 0.0, 0.0), False)
         if arm >= 0:
             return row, _IK_SINGULAR, arm, diagonal
         _write_row(qdot, row, rates[0])
         _write_row(qddot, row, rates[1])
+        peak_velocity = _larger_magnitude(peak_velocity, rates[0])
+        peak_accel = _larger_magnitude(peak_accel, rates[1])
+    peaks[0], peaks[1] = peak_velocity, peak_accel
     return -1, _IK_OK, 0, 0.0
+
+
+@kernel(inline=True)
+def _larger_magnitude(peak, rates):
+    """Return the largest of ``peak`` and the magnitudes of ``rates`` (a NaN stays, as in max)."""
+    for magnitude in (abs(rates[0]), abs(rates[1]), abs(rates[2])):
+        if peak == peak and not magnitude <= peak:
+            peak = magnitude
+    return peak
 
 
 @kernel
 def _angle_rows(cos_q, sin_q, q):
-    """Fill ``q`` (N, 3) with ``atan2(sin_q, cos_q)``: the call :func:`_ik_arm` makes."""
+    """Fill ``q`` (N, 3) with ``atan2(sin_q, cos_q)``: the call :func:`_ik_rows` makes."""
     for row in range(q.shape[0]):
         for arm in range(3):
             q[row, arm] = math.atan2(sin_q[row, arm], cos_q[row, arm])
@@ -1133,7 +1153,7 @@ _LIMIT_TEST_MARGIN = 1e-9
 @kernel(inline=True)
 def _inside_joint_limits(cos_q, sin_q, joint_min, joint_max, limit_trig):
     """
-    Return whether ``q = atan2(sin_q, cos_q)`` is within the limits, as :func:`_ik_point` says.
+    Return whether ``q = atan2(sin_q, cos_q)`` is within ``[joint_min, joint_max]``.
 
     With usable ``limit_trig`` (:func:`_limit_trig`), an angle well inside (both
     ``sin(q - joint_min)`` and ``sin(joint_max - q)``, times ``|(cos q, sin q)|``, above
@@ -1149,44 +1169,34 @@ def _inside_joint_limits(cos_q, sin_q, joint_min, joint_max, limit_trig):
 
 
 @kernel
-def _speed_cap_rows(points, directions, rx, ry, tx, ty, offset, upper, forearm, joint_min,
-                    joint_max, singular_diagonal, limit_trig, limit, caps):
+def _speed_cap_rows(positions, directions, extra, rx, ry, tx, ty, offset, upper, forearm,
+                    joint_min, joint_max, singular_diagonal, limit_trig, limit, caps):
     """
-    Fill ``caps`` (N,) with :func:`joint_speed_caps`; return whether every row succeeds.
+    Fill ``caps`` (N,) with :func:`joint_speed_caps`; return whether every point succeeds.
 
-    Stops at the first row out of reach (:func:`_ik_trig`), beyond a joint limit
-    (:func:`_inside_joint_limits`) or at an IK singularity (:func:`_rate_point`).
+    The points and directions are the columns of ``positions`` and ``directions`` (3, N);
+    then the point ``extra`` (a 3-tuple; NaN coordinates: none) must be reachable too. Stops
+    at the first point out of reach or beyond a joint limit (:func:`_ik_trig_point`) or at
+    an IK singularity (:func:`_rate_point`).
     """
     radial_x, radial_y, tangent_x, tangent_y = _triple(rx), _triple(ry), _triple(tx), _triple(ty)
     zero = (0.0, 0.0, 0.0)
-    fore_sq, upper_sq = forearm * forearm, upper * upper
-    for row in range(points.shape[0]):
-        x, y, z = _row(points, row)
-        if not (z < 0.0 and abs(x) + abs(y) + abs(z) < np.inf):
-            return False
-        arms = (_capped_arm(x, y, z, radial_x[0], radial_y[0], tangent_x[0], tangent_y[0],
-                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig),
-                _capped_arm(x, y, z, radial_x[1], radial_y[1], tangent_x[1], tangent_y[1],
-                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig),
-                _capped_arm(x, y, z, radial_x[2], radial_y[2], tangent_x[2], tangent_y[2],
-                            offset, upper, fore_sq, upper_sq, joint_min, joint_max, limit_trig))
-        if not (arms[0][0] and arms[1][0] and arms[2][0]):
+    for row in range(positions.shape[1]):
+        x, y, z = positions[0, row], positions[1, row], positions[2, row]
+        status, _, _, cosines, sines = _ik_trig_point(
+            x, y, z, radial_x, radial_y, tangent_x, tangent_y, offset, upper, forearm,
+            joint_min, joint_max, limit_trig)
+        if status != _IK_OK:
             return False
         arm, _, rates = _rate_point(
-            (x, y, z), _row(directions, row), zero, (arms[0][1], arms[1][1], arms[2][1]),
-            (arms[0][2], arms[1][2], arms[2][2]), radial_x, radial_y, offset, upper,
-            singular_diagonal, zero, False)
+            (x, y, z), (directions[0, row], directions[1, row], directions[2, row]), zero,
+            cosines, sines, radial_x, radial_y, offset, upper, singular_diagonal, zero, False)
         if arm >= 0:
             return False
         speed = rates[0]
         caps[row] = limit / max(max(max(abs(speed[0]), abs(speed[1])), abs(speed[2])), 1e-12)
-    return True
-
-
-@kernel(inline=True)
-def _capped_arm(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq, joint_min,
-                joint_max, limit_trig):
-    """Return (in reach and within the joint limits, cos q, sin q) of one arm."""
-    inside, cos_q, sin_q = _ik_trig(x, y, z, rx, ry, tx, ty, offset, upper, fore_sq, upper_sq)
-    return (inside and _inside_joint_limits(cos_q, sin_q, joint_min, joint_max, limit_trig),
-            cos_q, sin_q)
+    if extra[0] != extra[0]:
+        return True
+    return _ik_trig_point(extra[0], extra[1], extra[2], radial_x, radial_y, tangent_x,
+                          tangent_y, offset, upper, forearm, joint_min, joint_max,
+                          limit_trig)[0] == _IK_OK

@@ -40,7 +40,7 @@ from .joint_trajectory import (
     JointTrajectoryData, MotionSamples, on_whole_nanoseconds, quintic_interpolate,
     quintic_positions, sample_joint_trajectory, validate_jtc)
 from .kinematics import (
-    _ASSEMBLED, _forward_point, _kernel_geometry, DeltaGeometry, forward_kinematics,
+    _ASSEMBLED, _forward_point, _ik, _kernel_geometry, DeltaGeometry, forward_kinematics,
     inverse_kinematics, joint_speed_caps, joint_velocities, JointLimits,
     largest_magnitude_per_row)
 from .knots import _split_segments, minimal_knots
@@ -395,19 +395,17 @@ def _check_reach_and_speed_cap(path, config):
     count = max(int(math.ceil(path.length / _REACH_CHECK_SPACING)) + 1, 3)
     s = np.linspace(0.0, path.length, count)
     position, tangent = path.rows_at_lengths(s)[:2]
-    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
-    points, directions = np.empty((count + 1, 3)), np.zeros((count + 1, 3))
-    points[:-1], points[-1], directions[:-1] = position.T, path.apex, tangent.T
     limit = _JOINT_CAP_MARGIN * config.joint_limits.max_velocity
-    caps = joint_speed_caps(points, directions, config.geometry, limit)
+    # The samples and, last, the apex (at rest: its rates are not used), in one pass.
+    caps = joint_speed_caps(position, tangent, config.geometry, limit, rows=True,
+                            extra=path.apex)
     if caps is None:
         # Named as always: the first of the samples and the apex out of reach, else the first
         # sample at a singularity.
+        points = np.vstack((position.T, path.apex))
         q = inverse_kinematics(points, config.geometry, name='path point')[:-1]
-        dq_ds = joint_velocities(points[:-1], q, directions[:-1], config.geometry)
+        dq_ds = joint_velocities(points[:-1], q, tangent.T, config.geometry)
         caps = limit / np.maximum(largest_magnitude_per_row(dq_ds), 1e-12)
-    else:
-        caps = caps[:-1]
 
     def cap(query):
         return np.interp(query, s, caps)
@@ -455,10 +453,7 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     """
     config = config or PlannerConfig()
     # The end points first, so an unreachable pick or place is named as such.
-    inverse_kinematics(require_coordinates('pick', pick), config.geometry, name='pick')
-    inverse_kinematics(require_coordinates('place', place), config.geometry, name='place')
-    config.workspace.check(pick, name='pick')
-    config.workspace.check(place, name='place')
+    _check_ends(pick, place, config)
     path = plan_path(
         pick, place,
         config.pick_clearance if pick_clearance is None else pick_clearance,
@@ -520,6 +515,31 @@ def plan_transfer(pick, place, config=None, *, pick_clearance=None, place_cleara
     executed = {key: float(value) for key, value in zip(EXECUTED_KEYS, table.max(axis=0))}
     return LegPlan(path, motion, trajectory, knot_positions, error, peak_velocity / slowdown,
                    peak_accel / slowdown ** 2, slowdown, executed)
+
+
+def _check_ends(pick, place, config):
+    """
+    Raise unless ``pick`` and ``place`` are points the robot reaches within the workspace.
+
+    Checked in the order the errors are named: the pick's coordinates and reach, the
+    place's, then whether each is in the safe workspace; both points in one pass of each
+    check (:func:`~.kinematics._ik`, :meth:`SafeWorkspace.contains`) when both are valid
+    coordinates, the calls that name a failure only after one.
+    """
+    pick_point = require_coordinates('pick', pick)
+    try:
+        place_point = require_coordinates('place', place)
+    except InvalidInputError:
+        # An unreachable pick is named before the place.
+        inverse_kinematics(pick_point, config.geometry, name='pick')
+        raise
+    ends = np.array((pick_point, place_point))
+    if not _ik(ends, config.geometry)[1].any() and config.workspace.contains(ends).all():
+        return
+    inverse_kinematics(pick_point, config.geometry, name='pick')
+    inverse_kinematics(place_point, config.geometry, name='place')
+    config.workspace.check(pick, name='pick')
+    config.workspace.check(place, name='place')
 
 
 def _check_executed_workspace(trajectory, config, leg, speeds=None):
